@@ -1,0 +1,14 @@
+//! MPS (Moving Particle Semi-implicit) solver for linear elastodynamics of solids, after
+//! Amaro Junior, Cheng & Tsukamoto, shipped as an FMI 2.0 co-simulation FMU.
+//!
+//! Layers, each depending only on those above it in this list: `physics` (the solver, generic
+//! over the dimension), `scene` (serde scene files -> World), `sim` (either dimension behind one
+//! type), then the command line and `fmi`.
+pub mod analysis;
+pub mod cases;
+pub mod physics;
+pub mod scene;
+pub mod sim;
+
+pub use scene::Scene;
+pub use sim::{SimState, Simulation};

@@ -1,0 +1,90 @@
+//! Reference-configuration bonds: for each particle its neighbours within re (same body), with
+//! the reference vector r0_ij and the weight w(|r0_ij|) of Eq. (8), stored per particle (CSR).
+use super::dim::Vect;
+use super::grid::CellGrid;
+
+/// Weight function, Eq. (8).
+#[inline]
+pub fn weight(r: f64, re: f64) -> f64 {
+    if r <= re && r > 0.0 {
+        re / r - 1.0
+    } else {
+        0.0
+    }
+}
+
+/// Bonds in compressed-row form: the bonds of particle i are `start[i]..start[i+1]`.
+/// Every bond is stored twice (i->j and j->i), so the gather loops need no scatter.
+#[derive(Clone, Debug, Default)]
+pub struct Bonds<const D: usize> {
+    pub start: Vec<u32>,
+    /// Neighbour index j.
+    pub nbr: Vec<u32>,
+    /// Reference vector r0_ij = X_j - X_i (m).
+    pub r0: Vec<Vect<D>>,
+    /// Reference weight w(|r0_ij|), Eq. (8); set to 0 when the bond breaks, Eq. (42).
+    pub w0: Vec<f64>,
+}
+
+impl<const D: usize> Bonds<D> {
+    /// Finds all pairs of the same body within `re` with a cell grid (O(N)).
+    pub fn build(x0: &[Vect<D>], body: &[u32], re: f64) -> Self {
+        let grid = CellGrid::build(x0, None, re);
+        let mut b = Bonds::<D> {
+            start: Vec::with_capacity(x0.len() + 1),
+            ..Default::default()
+        };
+        b.start.push(0);
+        let mut near = Vec::new();
+        for i in 0..x0.len() {
+            near.clear();
+            grid.for_each_near(x0, &x0[i], re, |j| {
+                if j as usize != i && body[j as usize] == body[i] {
+                    near.push(j)
+                }
+            });
+            near.sort_unstable();
+            for &j in &near {
+                let r0 = x0[j as usize] - x0[i];
+                b.nbr.push(j);
+                b.w0.push(weight(r0.norm(), re));
+                b.r0.push(r0);
+            }
+            b.start.push(b.nbr.len() as u32);
+        }
+        b
+    }
+
+    /// Range of bond indices of particle i.
+    #[inline(always)]
+    pub fn of(&self, i: usize) -> std::ops::Range<usize> {
+        self.start[i] as usize..self.start[i + 1] as usize
+    }
+
+    /// Number of stored (directed) bonds.
+    pub fn len(&self) -> usize {
+        self.nbr.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.nbr.is_empty()
+    }
+}
+
+/// The number density n0 of a particle with a full neighbourhood on the square/cubic lattice of
+/// spacing l0, Eq. (12).
+pub fn lattice_number_density<const D: usize>(l0: f64, re: f64) -> f64 {
+    let m = (re / l0).ceil() as i64;
+    let mut n = 0.0;
+    let side = (2 * m + 1) as usize;
+    for code in 0..side.pow(D as u32) {
+        let mut c = code;
+        let mut r2 = 0.0;
+        for _ in 0..D {
+            let k = (c % side) as i64 - m;
+            c /= side;
+            r2 += (k as f64 * l0).powi(2);
+        }
+        n += weight(r2.sqrt(), re);
+    }
+    n
+}

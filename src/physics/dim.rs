@@ -1,0 +1,193 @@
+//! What differs between 2D and 3D: the per-particle rotation (an angle or a unit quaternion), the
+//! angular velocity (a scalar or a vector), cross products and the reference lattice.
+use nalgebra::{Quaternion, SMatrix, SVector, UnitQuaternion, Vector3};
+use serde::{de::DeserializeOwned, Serialize};
+use std::fmt::Debug;
+
+/// A position, velocity or force in `D` dimensions.
+pub type Vect<const D: usize> = SVector<f64, D>;
+/// A `D` x `D` matrix (deformation gradient, stress, shape tensor).
+pub type Mat<const D: usize> = SMatrix<f64, D, D>;
+
+/// Marker type on which the dimension-specific operations are implemented: `Space: Dim<2>` and
+/// `Space: Dim<3>`. Everything else in the solver is written once, generic over `D`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Space;
+
+/// The operations that differ between 2D and 3D.
+pub trait Dim<const D: usize>: Send + Sync + 'static {
+    /// Orientation of a particle: an angle (rad) in 2D, a unit quaternion in 3D.
+    type Rotation: Copy + Send + Sync + Debug + PartialEq + Serialize + DeserializeOwned;
+    /// Angular velocity (rad/s), moment (N m): a scalar about z in 2D, a vector in 3D.
+    type Ang: Copy + Send + Sync + Debug + PartialEq + Serialize + DeserializeOwned;
+
+    fn identity() -> Self::Rotation;
+    fn ang_zero() -> Self::Ang;
+    fn ang_add(a: Self::Ang, b: Self::Ang) -> Self::Ang;
+    fn ang_scale(a: Self::Ang, s: f64) -> Self::Ang;
+    fn ang_dot(a: Self::Ang, b: Self::Ang) -> f64;
+    /// Components as a 3-vector (2D: (0, 0, w)), for output.
+    fn ang_to3(a: Self::Ang) -> [f64; 3];
+    /// Rotates a vector.
+    fn rotate(q: &Self::Rotation, v: &Vect<D>) -> Vect<D>;
+    /// The rotation half way between two orientations: Eq. (16) in 2D, the geodesic midpoint of
+    /// the two quaternions in 3D (the 3D analogue of Eq. (16), see docs/model.md).
+    fn midpoint(a: &Self::Rotation, b: &Self::Rotation) -> Self::Rotation;
+    /// Advances an orientation by a constant angular velocity over dt: Eq. (40) in 2D, the exact
+    /// quaternion exponential in 3D (Eq. (21) composed with the increment).
+    fn advance(q: &Self::Rotation, w: &Self::Ang, dt: f64) -> Self::Rotation;
+    /// `r x f` (a scalar in 2D).
+    fn cross(r: &Vect<D>, f: &Vect<D>) -> Self::Ang;
+    /// Rotation angle (rad) of an orientation, for diagnostics.
+    fn angle(q: &Self::Rotation) -> f64;
+    /// Whether all components of the angular quantity are finite.
+    fn ang_finite(a: &Self::Ang) -> bool;
+    /// Inverse of a symmetric positive semi-definite matrix; the pseudo-inverse when it is
+    /// (nearly) singular, e.g. the shape tensor of a particle in a single layer.
+    fn sym_pinv(m: &Mat<D>) -> Mat<D>;
+    /// Moment of inertia of a cubic (square) particle of side l0 and mass m about its centre.
+    fn particle_inertia(mass: f64, l0: f64) -> f64 {
+        mass * l0 * l0 / 6.0
+    }
+}
+
+impl Dim<2> for Space {
+    type Rotation = f64;
+    type Ang = f64;
+    fn identity() -> f64 {
+        0.0
+    }
+    fn ang_zero() -> f64 {
+        0.0
+    }
+    fn ang_add(a: f64, b: f64) -> f64 {
+        a + b
+    }
+    fn ang_scale(a: f64, s: f64) -> f64 {
+        a * s
+    }
+    fn ang_dot(a: f64, b: f64) -> f64 {
+        a * b
+    }
+    fn ang_to3(a: f64) -> [f64; 3] {
+        [0.0, 0.0, a]
+    }
+    // Eq. (15)
+    #[inline(always)]
+    fn rotate(q: &f64, v: &Vect<2>) -> Vect<2> {
+        let (s, c) = q.sin_cos();
+        Vect::<2>::new(c * v.x - s * v.y, s * v.x + c * v.y)
+    }
+    // Eq. (16)
+    #[inline(always)]
+    fn midpoint(a: &f64, b: &f64) -> f64 {
+        0.5 * (a + b)
+    }
+    // Eq. (40)
+    fn advance(q: &f64, w: &f64, dt: f64) -> f64 {
+        q + dt * w
+    }
+    #[inline(always)]
+    fn cross(r: &Vect<2>, f: &Vect<2>) -> f64 {
+        r.x * f.y - r.y * f.x
+    }
+    fn angle(q: &f64) -> f64 {
+        q.abs()
+    }
+    fn ang_finite(a: &f64) -> bool {
+        a.is_finite()
+    }
+    fn sym_pinv(m: &Mat<2>) -> Mat<2> {
+        sym_pinv_impl::<2>(
+            m,
+            m.symmetric_eigen().eigenvalues.as_slice(),
+            &m.symmetric_eigen().eigenvectors,
+        )
+    }
+}
+
+impl Dim<3> for Space {
+    type Rotation = UnitQuaternion<f64>;
+    type Ang = Vector3<f64>;
+    fn identity() -> Self::Rotation {
+        UnitQuaternion::identity()
+    }
+    fn ang_zero() -> Vector3<f64> {
+        Vector3::zeros()
+    }
+    fn ang_add(a: Vector3<f64>, b: Vector3<f64>) -> Vector3<f64> {
+        a + b
+    }
+    fn ang_scale(a: Vector3<f64>, s: f64) -> Vector3<f64> {
+        a * s
+    }
+    fn ang_dot(a: Vector3<f64>, b: Vector3<f64>) -> f64 {
+        a.dot(&b)
+    }
+    fn ang_to3(a: Vector3<f64>) -> [f64; 3] {
+        [a.x, a.y, a.z]
+    }
+    // Eq. (17): the rotation matrix of the quaternion, applied to v.
+    #[inline(always)]
+    fn rotate(q: &Self::Rotation, v: &Vect<3>) -> Vect<3> {
+        q.transform_vector(v)
+    }
+    #[inline(always)]
+    fn midpoint(a: &Self::Rotation, b: &Self::Rotation) -> Self::Rotation {
+        let (qa, mut qb) = (a.quaternion().coords, b.quaternion().coords);
+        if qa.dot(&qb) < 0.0 {
+            qb = -qb;
+        }
+        UnitQuaternion::new_normalize(Quaternion::from(qa + qb))
+    }
+    // Eqs. (18)-(21): the increment is a rotation of |w| dt about w / |w|, composed on the left
+    // (w is the angular velocity in the world frame).
+    fn advance(q: &Self::Rotation, w: &Vector3<f64>, dt: f64) -> Self::Rotation {
+        let inc = UnitQuaternion::from_scaled_axis(w * dt);
+        UnitQuaternion::new_normalize((inc * q).into_inner())
+    }
+    #[inline(always)]
+    fn cross(r: &Vect<3>, f: &Vect<3>) -> Vector3<f64> {
+        r.cross(f)
+    }
+    fn angle(q: &Self::Rotation) -> f64 {
+        q.angle()
+    }
+    fn ang_finite(a: &Vector3<f64>) -> bool {
+        a.iter().all(|c| c.is_finite())
+    }
+    fn sym_pinv(m: &Mat<3>) -> Mat<3> {
+        sym_pinv_impl::<3>(
+            m,
+            m.symmetric_eigen().eigenvalues.as_slice(),
+            &m.symmetric_eigen().eigenvectors,
+        )
+    }
+}
+
+/// Converts a vector to a fixed 3-array (2D: z = 0), for output and the FMI layer.
+pub fn to3<const D: usize>(v: &Vect<D>) -> [f64; 3] {
+    let mut out = [0.0; 3];
+    for (k, o) in out.iter_mut().enumerate().take(D) {
+        *o = v[k];
+    }
+    out
+}
+
+/// Builds a `D`-vector from the first `D` components of a 3-array.
+pub fn from3<const D: usize>(a: [f64; 3]) -> Vect<D> {
+    Vect::<D>::from_fn(|k, _| a[k])
+}
+
+/// Pseudo-inverse from an eigen decomposition, dropping eigenvalues below 1e-10 of the largest.
+fn sym_pinv_impl<const D: usize>(_m: &Mat<D>, vals: &[f64], vecs: &Mat<D>) -> Mat<D> {
+    let top = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let mut out = Mat::<D>::zeros();
+    for (k, &val) in vals.iter().enumerate() {
+        if top > 0.0 && val.abs() > 1e-10 * top {
+            let e = vecs.column(k);
+            out += e * e.transpose() / val;
+        }
+    }
+    out
+}

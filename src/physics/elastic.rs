@@ -1,0 +1,277 @@
+//! Internal forces and moments of the elastic particle model: the paper's Eqs. (13)-(36) and the
+//! corrected (per-particle normalised) operator. Both are written in gather form: every particle
+//! sums over its own bonds and writes only its own force, so results do not depend on threads.
+use super::bonds::Bonds;
+use super::dim::{Dim, Mat, Space, Vect};
+#[allow(unused_imports)]
+use super::par::*;
+use super::params::{ElasticModel, Material};
+use super::particles::Particles;
+use crate::par_iter_mut;
+
+/// Precomputed constants of the elastic operator.
+#[derive(Clone, Debug)]
+pub struct ElasticOperator<const D: usize> {
+    pub model: ElasticModel,
+    /// Particle volume l0^d (m^d).
+    pub volume: f64,
+    /// Interior reference number density n0, Eq. (12).
+    pub n0: f64,
+    /// Stabilisation factor (corrected model).
+    pub stabilisation: f64,
+    /// Per-body (mu, lambda) (Pa).
+    pub lame: Vec<(f64, f64)>,
+    /// Corrected model: inverse shape tensor K_i^-1 with K_i = sum_j w0/|r0|^2 r0 r0^T.
+    pub k_inv: Vec<Mat<D>>,
+}
+
+/// Scratch arrays of the two passes.
+#[derive(Clone, Debug, Default)]
+pub struct ElasticScratch<const D: usize> {
+    /// Corrected: deformation gradient F_i.
+    pub defgrad: Vec<Mat<D>>,
+    /// Corrected: B_i = V P_i K_i^-1 - kappa V F_i.
+    pub bmat: Vec<Mat<D>>,
+    /// Paper: pressure p_i, Eq. (29) (Pa).
+    pub pressure: Vec<f64>,
+}
+
+impl<const D: usize> ElasticOperator<D>
+where
+    Space: Dim<D>,
+{
+    pub fn new(
+        model: ElasticModel,
+        l0: f64,
+        n0: f64,
+        stabilisation: f64,
+        materials: &[Material],
+        bonds: &Bonds<D>,
+        n_particles: usize,
+    ) -> Self {
+        let mut op = ElasticOperator {
+            model,
+            volume: l0.powi(D as i32),
+            n0,
+            stabilisation,
+            lame: materials.iter().map(|m| (m.mu(), m.lambda())).collect(),
+            k_inv: Vec::new(),
+        };
+        op.k_inv = (0..n_particles)
+            .map(|i| op.shape_inverse(bonds, i))
+            .collect();
+        op
+    }
+
+    /// K_i^-1 for the current (unbroken) bonds of particle i; pseudo-inverse when the
+    /// neighbourhood is degenerate (e.g. a single layer of particles).
+    pub fn shape_inverse(&self, bonds: &Bonds<D>, i: usize) -> Mat<D> {
+        let mut k = Mat::<D>::zeros();
+        for b in bonds.of(i) {
+            let r0 = bonds.r0[b];
+            k += r0 * r0.transpose() * (bonds.w0[b] / r0.norm_squared());
+        }
+        <Space as Dim<D>>::sym_pinv(&k)
+    }
+
+    /// Stiffness kappa of the stabilisation springs: `stabilisation` times the paper's
+    /// spring constant 2 d 2 mu / n0 per unit volume, Eqs. (27)-(31).
+    fn kappa(&self, mu: f64) -> f64 {
+        self.stabilisation * 2.0 * D as f64 * mu / self.n0
+    }
+
+    /// Computes the internal force and moment of every particle at the current state.
+    pub fn forces(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        s: &mut ElasticScratch<D>,
+        force: &mut [Vect<D>],
+        torque: &mut [<Space as Dim<D>>::Ang],
+    ) {
+        match self.model {
+            ElasticModel::Corrected => self.corrected_forces(p, bonds, s, force, torque),
+            ElasticModel::Paper | ElasticModel::PaperLocal => {
+                self.paper_forces(p, bonds, s, force, torque)
+            }
+        }
+    }
+
+    fn corrected_forces(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        s: &mut ElasticScratch<D>,
+        force: &mut [Vect<D>],
+        torque: &mut [<Space as Dim<D>>::Ang],
+    ) {
+        let n = p.len();
+        s.defgrad.resize(n, Mat::<D>::identity());
+        s.bmat.resize(n, Mat::<D>::zeros());
+        let v = self.volume;
+        // Pass 1: F_i = (sum_j w r_ij r0_ij^T / |r0|^2) K_i^-1 (exact for affine motion), Green
+        // strain E = (F^T F - I) / 2, Saint Venant-Kirchhoff S = 2 mu E + lambda tr(E) I
+        // (Eqs. (6)-(7) in the small-strain limit), first Piola-Kirchhoff P = F S.
+        par_iter_mut!(s.defgrad)
+            .zip(par_iter_mut!(s.bmat))
+            .enumerate()
+            .for_each(|(i, (f_out, b_out))| {
+                let xi = p.x[i];
+                let mut g = Mat::<D>::zeros();
+                for b in bonds.of(i) {
+                    let w0 = bonds.w0[b];
+                    if w0 == 0.0 {
+                        continue;
+                    }
+                    let r0 = bonds.r0[b];
+                    let om = w0 / r0.norm_squared();
+                    let r = p.x[bonds.nbr[b] as usize] - xi;
+                    g += (r * om) * r0.transpose();
+                }
+                let f = g * self.k_inv[i];
+                let (mu, lambda) = self.lame[p.body[i] as usize];
+                let e = (f.transpose() * f - Mat::<D>::identity()) * 0.5;
+                let stress = e * (2.0 * mu) + Mat::<D>::identity() * (lambda * e.trace());
+                *b_out = (f * stress * self.k_inv[i]) * v - f * (self.kappa(mu) * v);
+                *f_out = f;
+            });
+        let bm = &s.bmat;
+        // Pass 2: f_i = -dE/dx_i = sum_j w/|r0|^2 [(B_i + B_j) r0_ij + 2 kappa V r_ij].
+        par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
+            let xi = p.x[i];
+            let bi = bm[i];
+            let two_kv = 2.0 * self.kappa(self.lame[p.body[i] as usize].0) * v;
+            let mut acc = Vect::<D>::zeros();
+            for b in bonds.of(i) {
+                let w0 = bonds.w0[b];
+                if w0 == 0.0 {
+                    continue;
+                }
+                let j = bonds.nbr[b] as usize;
+                let r0 = bonds.r0[b];
+                let om = w0 / r0.norm_squared();
+                acc += ((bi + bm[j]) * r0 + (p.x[j] - xi) * two_kv) * om;
+            }
+            *f_out = acc;
+        });
+        torque
+            .iter_mut()
+            .for_each(|t| *t = <Space as Dim<D>>::ang_zero());
+    }
+
+    fn paper_forces(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        s: &mut ElasticScratch<D>,
+        force: &mut [Vect<D>],
+        torque: &mut [<Space as Dim<D>>::Ang],
+    ) {
+        let n = p.len();
+        s.pressure.resize(n, 0.0);
+        let d = D as f64;
+        let local = self.model == ElasticModel::PaperLocal;
+        let nd = |i: usize| if local { p.n_ref[i] } else { self.n0 };
+        // Pass 1: volumetric strain from the bond stretches, Eq. (26), and pressure, Eq. (29).
+        par_iter_mut!(s.pressure)
+            .enumerate()
+            .for_each(|(i, p_out)| {
+                let xi = p.x[i];
+                let mut sum = 0.0;
+                for b in bonds.of(i) {
+                    let w0 = bonds.w0[b];
+                    if w0 == 0.0 {
+                        continue;
+                    }
+                    let l0 = bonds.r0[b].norm();
+                    let r = (p.x[bonds.nbr[b] as usize] - xi).norm();
+                    sum += w0 * (r - l0) / l0;
+                }
+                *p_out = -self.lame[p.body[i] as usize].1 * d / nd(i) * sum;
+            });
+        let pr = &s.pressure;
+        let v = self.volume;
+        // Pass 2: Eqs. (13)-(14) relative displacement with the pair rotation, (27)-(28) spring
+        // stress, (30)-(31) translation, (32)-(33) pressure (with the sign of -grad p), (34)-(35)
+        // moments.
+        par_iter_mut!(force)
+            .zip(par_iter_mut!(torque))
+            .enumerate()
+            .for_each(|(i, (f_out, t_out))| {
+                let xi = p.x[i];
+                let qi = p.q[i];
+                let c = 2.0 * d / nd(i) * v;
+                let mu2 = 2.0 * self.lame[p.body[i] as usize].0;
+                let mut acc = Vect::<D>::zeros();
+                let mut mom = <Space as Dim<D>>::ang_zero();
+                for b in bonds.of(i) {
+                    let w0 = bonds.w0[b];
+                    if w0 == 0.0 {
+                        continue;
+                    }
+                    let j = bonds.nbr[b] as usize;
+                    let r0 = bonds.r0[b];
+                    let l02 = r0.norm_squared();
+                    let rij = p.x[j] - xi;
+                    let rot = <Space as Dim<D>>::midpoint(&qi, &p.q[j]);
+                    let u = rij - <Space as Dim<D>>::rotate(&rot, &r0);
+                    let fs = u * (c * mu2 * w0 / l02);
+                    let rn = rij.norm();
+                    acc += fs + rij * (-c * 0.5 * (pr[i] + pr[j]) * w0 / (l02.sqrt() * rn));
+                    mom = <Space as Dim<D>>::ang_add(
+                        mom,
+                        <Space as Dim<D>>::cross(&(rij * 0.5), &fs),
+                    );
+                }
+                *f_out = acc;
+                *t_out = mom;
+            });
+    }
+
+    /// Elastic strain energy of the current state (J); evaluated for output, not in the step.
+    pub fn strain_energy(&self, p: &Particles<D>, bonds: &Bonds<D>, s: &ElasticScratch<D>) -> f64 {
+        let v = self.volume;
+        let d = D as f64;
+        let mut total = 0.0;
+        for i in 0..p.len() {
+            let (mu, lambda) = self.lame[p.body[i] as usize];
+            let xi = p.x[i];
+            match self.model {
+                ElasticModel::Corrected => {
+                    let f = s.defgrad.get(i).copied().unwrap_or_else(Mat::<D>::identity);
+                    let e = (f.transpose() * f - Mat::<D>::identity()) * 0.5;
+                    total +=
+                        v * (mu * e.component_mul(&e).sum() + 0.5 * lambda * e.trace().powi(2));
+                    let kv = self.kappa(mu) * v;
+                    for b in bonds.of(i) {
+                        let r0 = bonds.r0[b];
+                        let om = bonds.w0[b] / r0.norm_squared();
+                        let res = (p.x[bonds.nbr[b] as usize] - xi) - f * r0;
+                        total += 0.5 * kv * om * res.norm_squared();
+                    }
+                }
+                ElasticModel::Paper | ElasticModel::PaperLocal => {
+                    let nd = if self.model == ElasticModel::PaperLocal {
+                        p.n_ref[i]
+                    } else {
+                        self.n0
+                    };
+                    let c = 2.0 * d / nd * v;
+                    for b in bonds.of(i) {
+                        let j = bonds.nbr[b] as usize;
+                        let r0 = bonds.r0[b];
+                        let rot = <Space as Dim<D>>::midpoint(&p.q[i], &p.q[j]);
+                        let u = (p.x[j] - xi) - <Space as Dim<D>>::rotate(&rot, &r0);
+                        total += 0.25 * c * 2.0 * mu * bonds.w0[b] / r0.norm_squared()
+                            * u.norm_squared();
+                    }
+                    let pi = s.pressure.get(i).copied().unwrap_or(0.0);
+                    if lambda > 0.0 {
+                        total += 0.5 * v * pi * pi / lambda;
+                    }
+                }
+            }
+        }
+        total
+    }
+}

@@ -1,0 +1,59 @@
+//! A uniform cell grid over points: O(N) neighbour search within a radius (bond search in the
+//! reference configuration, contact search among surface particles).
+use super::dim::Vect;
+use std::collections::HashMap;
+
+/// Points binned into cubic cells of side `cell`; cells are hashed so unbounded domains work.
+pub struct CellGrid<const D: usize> {
+    cell: f64,
+    cells: HashMap<[i64; D], Vec<u32>>,
+}
+
+impl<const D: usize> CellGrid<D> {
+    /// Bins the points `pts[i]` for `i` in `ids` (all points when `ids` is None).
+    pub fn build(pts: &[Vect<D>], ids: Option<&[u32]>, cell: f64) -> Self {
+        let mut cells: HashMap<[i64; D], Vec<u32>> = HashMap::new();
+        let mut push = |i: u32| {
+            cells
+                .entry(Self::key_of(&pts[i as usize], cell))
+                .or_default()
+                .push(i);
+        };
+        match ids {
+            Some(ids) => ids.iter().for_each(|&i| push(i)),
+            None => (0..pts.len() as u32).for_each(&mut push),
+        }
+        CellGrid { cell, cells }
+    }
+
+    fn key_of(p: &Vect<D>, cell: f64) -> [i64; D] {
+        let mut k = [0i64; D];
+        for (d, kd) in k.iter_mut().enumerate() {
+            *kd = (p[d] / cell).floor() as i64;
+        }
+        k
+    }
+
+    /// Calls `f(j)` for every binned point j with |pts[j] - p| <= radius (radius <= cell size).
+    pub fn for_each_near(&self, pts: &[Vect<D>], p: &Vect<D>, radius: f64, mut f: impl FnMut(u32)) {
+        debug_assert!(radius <= self.cell * (1.0 + 1e-12));
+        let base = Self::key_of(p, self.cell);
+        let r2 = radius * radius;
+        let n = 3usize.pow(D as u32);
+        for code in 0..n {
+            let mut key = base;
+            let mut c = code;
+            for kd in key.iter_mut() {
+                *kd += (c % 3) as i64 - 1;
+                c /= 3;
+            }
+            if let Some(list) = self.cells.get(&key) {
+                for &j in list {
+                    if (pts[j as usize] - p).norm_squared() <= r2 {
+                        f(j);
+                    }
+                }
+            }
+        }
+    }
+}

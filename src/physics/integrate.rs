@@ -1,0 +1,111 @@
+//! Symplectic Euler, Eqs. (37)-(40), and the stable time step of the particle model, measured by
+//! power iteration on its own stiffness (springs, pressure and rotational degrees of freedom).
+use super::dim::{Dim, Space, Vect};
+#[allow(unused_imports)]
+use super::par::*;
+use super::particles::{Particles, FIX_AXIS, FIX_ROT};
+use crate::par_iter_mut;
+
+/// Per-step inputs of the integrator that are the same for all particles.
+pub struct StepInputs<'a, const D: usize> {
+    pub dt: f64,
+    pub gravity: Vect<D>,
+    /// Mass-proportional damping (1/s).
+    pub damping: f64,
+    /// Per particle: boundary group index or u32::MAX.
+    pub group_of: &'a [u32],
+    /// Per group: displacement at the start and at the end of the step.
+    pub group_disp: &'a [(Vect<D>, Vect<D>)],
+    /// Per particle: load region index or u32::MAX.
+    pub load_of: &'a [u32],
+    /// Per load region: force per particle (N).
+    pub load_per_particle: &'a [Vect<D>],
+    /// A step that moves a particle farther than this is a numerical blow-up (m).
+    pub max_move: f64,
+}
+
+/// Advances velocities and positions by one step, Eqs. (37)-(40), given the internal forces and
+/// moments at the current state. Returns the index of the first particle whose new state is not
+/// finite or moved more than `max_move` (a blow-up), if any.
+pub fn symplectic_euler<const D: usize>(
+    p: &mut Particles<D>,
+    force: &[Vect<D>],
+    torque: &[<Space as Dim<D>>::Ang],
+    inp: &StepInputs<'_, D>,
+    bad: &mut [u8],
+) -> Option<usize>
+where
+    Space: Dim<D>,
+{
+    let dt = inp.dt;
+    let Particles {
+        x0,
+        x,
+        v,
+        q,
+        w,
+        mass,
+        inertia,
+        fix,
+        ..
+    } = p;
+    par_iter_mut!(x)
+        .zip(par_iter_mut!(v))
+        .zip(par_iter_mut!(q))
+        .zip(par_iter_mut!(w))
+        .zip(par_iter_mut!(bad))
+        .enumerate()
+        .for_each(|(i, ((((xi, vi), qi), wi), bi))| {
+            let m = mass[i];
+            let mut f = force[i] + inp.gravity * m - *vi * (inp.damping * m);
+            let l = inp.load_of[i];
+            if l != u32::MAX {
+                f += inp.load_per_particle[l as usize];
+            }
+            // Eq. (37) and (38)
+            let mut vn = *vi + f * (dt / m);
+            let mut xn = *xi + vn * dt;
+            let flags = fix[i];
+            if flags != 0 {
+                let g = inp.group_of[i];
+                let (d_start, d_end) = if g == u32::MAX {
+                    (Vect::<D>::zeros(), Vect::<D>::zeros())
+                } else {
+                    inp.group_disp[g as usize]
+                };
+                for k in 0..D {
+                    if flags & FIX_AXIS[k] != 0 {
+                        xn[k] = x0[i][k] + d_end[k];
+                        vn[k] = (d_end[k] - d_start[k]) / dt;
+                    }
+                }
+            }
+            // Eq. (39) and (40)
+            if flags & FIX_ROT == 0 {
+                *wi = <Space as Dim<D>>::ang_add(
+                    *wi,
+                    <Space as Dim<D>>::ang_scale(torque[i], dt / inertia[i]),
+                );
+                *qi = <Space as Dim<D>>::advance(qi, wi, dt);
+            }
+            let moved = (xn - *xi).norm();
+            *bi = u8::from(
+                !(moved <= inp.max_move)
+                    || !vn.iter().all(|c| c.is_finite())
+                    || !<Space as Dim<D>>::ang_finite(wi),
+            );
+            *xi = xn;
+            *vi = vn;
+        });
+    bad.iter().position(|&b| b != 0)
+}
+
+/// Critical step of symplectic Euler for the largest angular frequency of the linearised model:
+/// the scheme is stable for dt * omega_max < 2.
+pub fn critical_step(omega_max: f64) -> f64 {
+    if omega_max > 0.0 {
+        2.0 / omega_max
+    } else {
+        f64::INFINITY
+    }
+}

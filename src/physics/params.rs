@@ -1,0 +1,82 @@
+//! Plain parameter structs of the solver (serde, units in the doc comments).
+use serde::{Deserialize, Serialize};
+
+/// Isotropic linear-elastic material.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Material {
+    /// Density rho (kg/m^3).
+    pub density: f64,
+    /// Young's modulus E (Pa).
+    pub young: f64,
+    /// Poisson's ratio nu (-), in (-1, 0.5).
+    pub poisson: f64,
+}
+
+impl Material {
+    /// Shear modulus mu, Eq. (3) (Pa).
+    pub fn mu(&self) -> f64 {
+        self.young / (2.0 * (1.0 + self.poisson))
+    }
+    /// Lame's first parameter lambda, Eq. (4) (Pa). This is the 3D value; 2D scenes are plane
+    /// strain, for which the same lambda applies.
+    pub fn lambda(&self) -> f64 {
+        self.young * self.poisson / ((1.0 + self.poisson) * (1.0 - 2.0 * self.poisson))
+    }
+    /// P-wave speed sqrt((lambda + 2 mu) / rho) (m/s).
+    pub fn p_wave_speed(&self) -> f64 {
+        ((self.lambda() + 2.0 * self.mu()) / self.density).sqrt()
+    }
+}
+
+/// Which discrete elasticity operator computes the internal forces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ElasticModel {
+    /// Per-particle corrected operators (exact for linear displacement fields), forces from the
+    /// strain energy, plus a bond-level stabilisation of the non-affine part. See docs/model.md.
+    #[default]
+    Corrected,
+    /// The paper's Eqs. (13)-(36): normal and shear springs with per-particle rotations and a
+    /// volumetric pressure, normalised by the interior reference number density n0 so that the
+    /// pair forces are equal and opposite (momentum conserving).
+    Paper,
+    /// The paper's equations taken literally: normalised by each particle's own number density
+    /// n_i (reference configuration). Not momentum conserving at free surfaces.
+    PaperLocal,
+}
+
+/// Solver options of a scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverOptions {
+    /// Elasticity operator.
+    pub model: ElasticModel,
+    /// Effective radius re as a multiple of the particle spacing l0 (-); the paper uses 2.1.
+    pub re_factor: f64,
+    /// Corrected model only: stiffness of the stabilisation of the non-affine bond motion, as a
+    /// fraction of the paper's spring stiffness (-).
+    pub stabilisation: f64,
+    /// Fixed time step (s). None: chosen from the stability bound of the particle model.
+    pub dt: Option<f64>,
+    /// Safety factor applied to the stability bound dt_crit = 2 / omega_max (-).
+    pub safety: f64,
+    /// Mass-proportional damping coefficient c (1/s): adds -c m v to each particle. 0 = off.
+    pub damping: f64,
+    /// Largest number of particles a scene may create (memory guard).
+    pub max_particles: usize,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        SolverOptions {
+            model: ElasticModel::Corrected,
+            re_factor: 2.1,
+            stabilisation: 0.5,
+            dt: None,
+            safety: 0.8,
+            damping: 0.0,
+            max_particles: 5_000_000,
+        }
+    }
+}

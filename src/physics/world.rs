@@ -1,0 +1,572 @@
+//! The simulated world: bodies of particles, bonds, boundary groups, loads and gravity, and the
+//! order of a step (integrate with the forces of the current state, then evaluate the forces of
+//! the new state, so reactions and energies always describe the current time).
+use super::bonds::{lattice_number_density, Bonds};
+use super::boundary::{BoundaryGroup, GravityLaw, GroupMotion, LoadRegion};
+use super::dim::{Dim, Space, Vect};
+use super::elastic::{ElasticOperator, ElasticScratch};
+use super::integrate::{critical_step, symplectic_euler, StepInputs};
+use super::params::{Material, SolverOptions};
+use super::particles::{Particles, FIX_AXIS, FIX_ROT};
+use serde::{Deserialize, Serialize};
+
+/// Errors of the solver; each says what happened, when and where.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    #[error("numerical blow-up at t = {time:.6e} s (step {step}): particle {particle} of body '{body}' moved more than half a particle spacing in one step or became non-finite; reduce dt or check loads")]
+    BlowUp {
+        time: f64,
+        step: u64,
+        particle: usize,
+        body: String,
+    },
+    #[error("invalid input: {0}")]
+    Invalid(String),
+}
+
+/// A body to create: its material, particle positions and initial velocity.
+#[derive(Clone, Debug)]
+pub struct BodyInit<const D: usize> {
+    pub name: String,
+    pub material: Material,
+    pub points: Vec<Vect<D>>,
+    pub velocity: Vect<D>,
+}
+
+/// A boundary group to create (member indices are global particle indices).
+#[derive(Clone, Debug)]
+pub struct GroupInit {
+    pub name: String,
+    pub members: Vec<u32>,
+    pub axes: [bool; 3],
+    pub fix_rotation: bool,
+}
+
+/// Everything that evolves in time, as plain data (FMU state, checkpoints). Restoring it and
+/// stepping on gives bitwise the same results as never having stopped.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "")]
+pub struct WorldState<const D: usize>
+where
+    Space: Dim<D>,
+{
+    pub time: f64,
+    pub steps: u64,
+    pub x: Vec<Vect<D>>,
+    pub v: Vec<Vect<D>>,
+    pub q: Vec<<Space as Dim<D>>::Rotation>,
+    pub w: Vec<<Space as Dim<D>>::Ang>,
+    pub w0: Vec<f64>,
+    pub motions: Vec<GroupMotion<D>>,
+    pub loads: Vec<Vect<D>>,
+    pub gravity: GravityLaw<D>,
+}
+
+/// The simulated world.
+pub struct World<const D: usize>
+where
+    Space: Dim<D>,
+{
+    pub options: SolverOptions,
+    /// Initial particle spacing l0 (m).
+    pub l0: f64,
+    /// Effective radius re (m).
+    pub re: f64,
+    pub body_names: Vec<String>,
+    pub p: Particles<D>,
+    pub bonds: Bonds<D>,
+    pub op: ElasticOperator<D>,
+    pub groups: Vec<BoundaryGroup<D>>,
+    pub loads: Vec<LoadRegion<D>>,
+    pub gravity: GravityLaw<D>,
+    pub time: f64,
+    pub steps: u64,
+    omega_max: f64,
+    scratch: ElasticScratch<D>,
+    force: Vec<Vect<D>>,
+    torque: Vec<<Space as Dim<D>>::Ang>,
+    group_of: Vec<u32>,
+    load_of: Vec<u32>,
+    bad: Vec<u8>,
+}
+
+impl<const D: usize> World<D>
+where
+    Space: Dim<D>,
+{
+    /// Builds the particles, finds the bonds, precomputes the operators, measures the stable
+    /// step and evaluates the forces of the initial state.
+    pub fn new(
+        l0: f64,
+        options: SolverOptions,
+        bodies: Vec<BodyInit<D>>,
+        groups: Vec<GroupInit>,
+        loads: Vec<(String, Vec<u32>)>,
+        gravity: GravityLaw<D>,
+    ) -> Result<Self, SimError> {
+        let re = options.re_factor * l0;
+        let mut p = Particles::<D> {
+            x0: vec![],
+            x: vec![],
+            v: vec![],
+            q: vec![],
+            w: vec![],
+            body: vec![],
+            mass: vec![],
+            inertia: vec![],
+            fix: vec![],
+            n_ref: vec![],
+        };
+        let volume = l0.powi(D as i32);
+        for (b, body) in bodies.iter().enumerate() {
+            let m = body.material.density * volume;
+            for pt in &body.points {
+                p.x0.push(*pt);
+                p.x.push(*pt);
+                p.v.push(body.velocity);
+                p.q.push(<Space as Dim<D>>::identity());
+                p.w.push(<Space as Dim<D>>::ang_zero());
+                p.body.push(b as u32);
+                p.mass.push(m);
+                p.inertia.push(<Space as Dim<D>>::particle_inertia(m, l0));
+                p.fix.push(0);
+            }
+        }
+        let n = p.len();
+        if n == 0 {
+            return Err(SimError::Invalid("the scene has no particles".into()));
+        }
+        let bonds = Bonds::build(&p.x0, &p.body, re);
+        p.n_ref = (0..n)
+            .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
+            .collect();
+        let n0 = lattice_number_density::<D>(l0, re);
+        let materials: Vec<Material> = bodies.iter().map(|b| b.material).collect();
+        let op = ElasticOperator::new(
+            options.model,
+            l0,
+            n0,
+            options.stabilisation,
+            &materials,
+            &bonds,
+            n,
+        );
+        let mut group_of = vec![u32::MAX; n];
+        let mut gs = Vec::new();
+        for (gi, g) in groups.into_iter().enumerate() {
+            for &i in &g.members {
+                let i = i as usize;
+                if i >= n {
+                    return Err(SimError::Invalid(format!(
+                        "group '{}' names particle {i} of {n}",
+                        g.name
+                    )));
+                }
+                group_of[i] = gi as u32;
+                for k in 0..D {
+                    if g.axes[k] {
+                        p.fix[i] |= FIX_AXIS[k];
+                    }
+                }
+                if g.fix_rotation {
+                    p.fix[i] |= FIX_ROT;
+                }
+            }
+            gs.push(BoundaryGroup {
+                name: g.name,
+                members: g.members,
+                axes: g.axes,
+                fix_rotation: g.fix_rotation,
+                motion: GroupMotion::default(),
+                reaction: Vect::<D>::zeros(),
+            });
+        }
+        let mut load_of = vec![u32::MAX; n];
+        let mut ls = Vec::new();
+        for (li, (name, members)) in loads.into_iter().enumerate() {
+            for &i in &members {
+                load_of[i as usize] = li as u32;
+            }
+            ls.push(LoadRegion {
+                name,
+                members,
+                force: Vect::<D>::zeros(),
+            });
+        }
+        let mut world = World {
+            options,
+            l0,
+            re,
+            body_names: bodies.into_iter().map(|b| b.name).collect(),
+            p,
+            bonds,
+            op,
+            groups: gs,
+            loads: ls,
+            gravity,
+            time: 0.0,
+            steps: 0,
+            omega_max: 0.0,
+            scratch: ElasticScratch::default(),
+            force: vec![Vect::<D>::zeros(); n],
+            torque: vec![<Space as Dim<D>>::ang_zero(); n],
+            group_of,
+            load_of,
+            bad: vec![0; n],
+        };
+        world.omega_max = world.measure_omega_max(80);
+        world.update_forces();
+        Ok(world)
+    }
+
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.p.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.p.is_empty()
+    }
+
+    /// Largest angular frequency of the linearised particle model (rad/s).
+    pub fn omega_max(&self) -> f64 {
+        self.omega_max
+    }
+
+    /// Stability limit of symplectic Euler for this model, 2 / omega_max (s).
+    pub fn critical_dt(&self) -> f64 {
+        critical_step(self.omega_max)
+    }
+
+    /// The step the solver takes at most: the scene's fixed dt, or safety * critical_dt (s).
+    pub fn max_dt(&self) -> f64 {
+        self.options
+            .dt
+            .unwrap_or(self.options.safety * self.critical_dt())
+    }
+
+    /// Evaluates the internal forces of the current state and the reactions of the groups.
+    fn update_forces(&mut self) {
+        self.op.forces(
+            &self.p,
+            &self.bonds,
+            &mut self.scratch,
+            &mut self.force,
+            &mut self.torque,
+        );
+        for g in &mut self.groups {
+            let mut sum = Vect::<D>::zeros();
+            for &i in &g.members {
+                sum -= self.force[i as usize];
+            }
+            for k in 0..D {
+                if !g.axes[k] {
+                    sum[k] = 0.0;
+                }
+            }
+            g.reaction = sum;
+        }
+    }
+
+    /// One step of length dt (s).
+    pub fn step(&mut self, dt: f64) -> Result<(), SimError> {
+        self.step_to(dt, self.time + dt)
+    }
+
+    fn step_to(&mut self, dt: f64, t_new: f64) -> Result<(), SimError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(SimError::Invalid(format!(
+                "time step must be positive and finite, got {dt}"
+            )));
+        }
+        let t = self.time;
+        let group_disp: Vec<(Vect<D>, Vect<D>)> = self
+            .groups
+            .iter()
+            .map(|g| (g.motion.at(t), g.motion.at(t_new)))
+            .collect();
+        let load_pp: Vec<Vect<D>> = self
+            .loads
+            .iter()
+            .map(|l| l.force / (l.members.len().max(1) as f64))
+            .collect();
+        let inputs = StepInputs {
+            dt,
+            gravity: self.gravity.at(t),
+            damping: self.options.damping,
+            group_of: &self.group_of,
+            group_disp: &group_disp,
+            load_of: &self.load_of,
+            load_per_particle: &load_pp,
+            max_move: 0.5 * self.l0,
+        };
+        let bad = symplectic_euler(
+            &mut self.p,
+            &self.force,
+            &self.torque,
+            &inputs,
+            &mut self.bad,
+        );
+        self.time = t_new;
+        self.steps += 1;
+        if let Some(i) = bad {
+            return Err(SimError::BlowUp {
+                time: self.time,
+                step: self.steps,
+                particle: i,
+                body: self.body_names[self.p.body[i] as usize].clone(),
+            });
+        }
+        self.update_forces();
+        Ok(())
+    }
+
+    /// Advances to t_end with equal sub-steps no longer than `max_dt`, landing exactly on t_end.
+    /// Group displacements move linearly from their current value to their target over
+    /// [time, t_end]. Returns the number of steps taken.
+    pub fn advance_to(&mut self, t_end: f64) -> Result<u64, SimError> {
+        if !t_end.is_finite() {
+            return Err(SimError::Invalid(format!(
+                "end time must be finite, got {t_end}"
+            )));
+        }
+        let t0 = self.time;
+        let h = t_end - t0;
+        if h <= 0.0 {
+            return Ok(0);
+        }
+        for g in &mut self.groups {
+            g.motion = GroupMotion {
+                from: g.motion.at(t0),
+                to: g.motion.to,
+                t_from: t0,
+                t_to: t_end,
+            };
+        }
+        let n = ((h / self.max_dt()) * (1.0 - 1e-12)).ceil().max(1.0) as u64;
+        let dt = h / n as f64;
+        for k in 1..=n {
+            let t_new = if k == n { t_end } else { t0 + k as f64 * dt };
+            self.step_to(t_new - self.time, t_new)?;
+        }
+        Ok(n)
+    }
+
+    /// Sets the displacement a group reaches at the end of the next `advance_to` (m).
+    pub fn set_group_target(&mut self, g: usize, d: Vect<D>) {
+        self.groups[g].motion.to = d;
+    }
+
+    /// Sets the total external force on a load region (N).
+    pub fn set_load(&mut self, r: usize, f: Vect<D>) {
+        self.loads[r].force = f;
+    }
+
+    /// Replaces the gravity law by a constant vector (m/s^2).
+    pub fn set_gravity(&mut self, g: Vect<D>) {
+        self.gravity = GravityLaw::Constant(g);
+    }
+
+    /// Kinetic energy of translation and rotation (J).
+    pub fn kinetic_energy(&self) -> f64 {
+        (0..self.len())
+            .map(|i| {
+                0.5 * self.p.mass[i] * self.p.v[i].norm_squared()
+                    + 0.5 * self.p.inertia[i] * <Space as Dim<D>>::ang_dot(self.p.w[i], self.p.w[i])
+            })
+            .sum()
+    }
+
+    /// Elastic strain energy of the current state (J).
+    pub fn strain_energy(&self) -> f64 {
+        self.op.strain_energy(&self.p, &self.bonds, &self.scratch)
+    }
+
+    /// Total linear momentum (kg m/s).
+    pub fn momentum(&self) -> Vect<D> {
+        (0..self.len()).fold(Vect::<D>::zeros(), |acc, i| {
+            acc + self.p.v[i] * self.p.mass[i]
+        })
+    }
+
+    /// Total angular momentum about the origin, orbital plus spin (kg m^2/s).
+    pub fn angular_momentum(&self) -> <Space as Dim<D>>::Ang {
+        (0..self.len()).fold(<Space as Dim<D>>::ang_zero(), |acc, i| {
+            let orb = <Space as Dim<D>>::cross(&self.p.x[i], &(self.p.v[i] * self.p.mass[i]));
+            let spin = <Space as Dim<D>>::ang_scale(self.p.w[i], self.p.inertia[i]);
+            <Space as Dim<D>>::ang_add(acc, <Space as Dim<D>>::ang_add(orb, spin))
+        })
+    }
+
+    /// Internal force on particle i at the current state (N).
+    pub fn internal_force(&self, i: usize) -> Vect<D> {
+        self.force[i]
+    }
+
+    /// Displacement at a reference point near particle i: u_i + H_i (X - X_i), with the
+    /// displacement gradient H_i from the corrected gradient operator (exact for linear fields).
+    pub fn displacement_at(&self, i: usize, point: &Vect<D>) -> Vect<D> {
+        let ui = self.p.displacement(i);
+        let mut g = super::dim::Mat::<D>::zeros();
+        for b in self.bonds.of(i) {
+            let r0 = self.bonds.r0[b];
+            let om = self.bonds.w0[b] / r0.norm_squared();
+            let du = self.p.displacement(self.bonds.nbr[b] as usize) - ui;
+            g += (du * om) * r0.transpose();
+        }
+        ui + g * self.op.k_inv[i] * (point - self.p.x0[i])
+    }
+
+    /// Index of the particle of `body` (any body when None) nearest to a reference point.
+    pub fn nearest_particle(&self, point: &Vect<D>, body: Option<u32>) -> Option<(usize, f64)> {
+        (0..self.len())
+            .filter(|&i| body.is_none_or(|b| self.p.body[i] == b))
+            .map(|i| (i, (self.p.x0[i] - point).norm()))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// Captures the evolving state.
+    pub fn state(&self) -> WorldState<D> {
+        WorldState {
+            time: self.time,
+            steps: self.steps,
+            x: self.p.x.clone(),
+            v: self.p.v.clone(),
+            q: self.p.q.clone(),
+            w: self.p.w.clone(),
+            w0: self.bonds.w0.clone(),
+            motions: self.groups.iter().map(|g| g.motion).collect(),
+            loads: self.loads.iter().map(|l| l.force).collect(),
+            gravity: self.gravity,
+        }
+    }
+
+    /// Restores a state captured from a world built from the same scene.
+    pub fn set_state(&mut self, s: &WorldState<D>) -> Result<(), SimError> {
+        let n = self.len();
+        if s.x.len() != n
+            || s.v.len() != n
+            || s.q.len() != n
+            || s.w.len() != n
+            || s.w0.len() != self.bonds.len()
+            || s.motions.len() != self.groups.len()
+            || s.loads.len() != self.loads.len()
+        {
+            return Err(SimError::Invalid(
+                "state does not belong to this scene (sizes differ)".into(),
+            ));
+        }
+        self.time = s.time;
+        self.steps = s.steps;
+        self.p.x.clone_from(&s.x);
+        self.p.v.clone_from(&s.v);
+        self.p.q.clone_from(&s.q);
+        self.p.w.clone_from(&s.w);
+        self.bonds.w0.clone_from(&s.w0);
+        for (g, m) in self.groups.iter_mut().zip(&s.motions) {
+            g.motion = *m;
+        }
+        for (l, f) in self.loads.iter_mut().zip(&s.loads) {
+            l.force = *f;
+        }
+        self.gravity = s.gravity;
+        self.update_forces();
+        Ok(())
+    }
+
+    /// Largest eigenvalue of M^-1 K (translations and, in the paper model, rotations) by power
+    /// iteration on the model's own force function around the reference state, with the mass
+    /// inner product (so the operator is self-adjoint). Constrained degrees of freedom are
+    /// excluded. Returns omega_max (rad/s).
+    fn measure_omega_max(&self, iterations: usize) -> f64 {
+        let n = self.len();
+        let mut probe = self.p.clone();
+        let mut scratch = ElasticScratch::default();
+        let mut f = vec![Vect::<D>::zeros(); n];
+        let mut t = vec![<Space as Dim<D>>::ang_zero(); n];
+        let rotational = self.op.model != super::params::ElasticModel::Corrected;
+        // Deterministic pseudo-random start vector.
+        let mut seed: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut zt: Vec<Vect<D>> = (0..n).map(|_| Vect::<D>::from_fn(|_, _| rnd())).collect();
+        let mut zr: Vec<<Space as Dim<D>>::Ang> = (0..n)
+            .map(|_| {
+                let a = <Space as Dim<D>>::cross(
+                    &Vect::<D>::from_fn(|_, _| rnd()),
+                    &Vect::<D>::from_fn(|_, _| rnd()),
+                );
+                if rotational {
+                    <Space as Dim<D>>::ang_scale(a, 1.0 / self.l0)
+                } else {
+                    <Space as Dim<D>>::ang_zero()
+                }
+            })
+            .collect();
+        let mask = |p: &Particles<D>, zt: &mut [Vect<D>], zr: &mut [<Space as Dim<D>>::Ang]| {
+            for i in 0..n {
+                for k in 0..D {
+                    if p.fix[i] & FIX_AXIS[k] != 0 {
+                        zt[i][k] = 0.0;
+                    }
+                }
+                if p.fix[i] & FIX_ROT != 0 {
+                    zr[i] = <Space as Dim<D>>::ang_zero();
+                }
+            }
+        };
+        let norm_m = |zt: &[Vect<D>], zr: &[<Space as Dim<D>>::Ang]| -> f64 {
+            (0..n)
+                .map(|i| {
+                    self.p.mass[i] * zt[i].norm_squared()
+                        + self.p.inertia[i] * <Space as Dim<D>>::ang_dot(zr[i], zr[i])
+                })
+                .sum::<f64>()
+                .sqrt()
+        };
+        mask(&self.p, &mut zt, &mut zr);
+        let mut lambda = 0.0;
+        for _ in 0..iterations {
+            let nz = norm_m(&zt, &zr);
+            if nz == 0.0 {
+                return 0.0;
+            }
+            let eps = 1e-7 * self.l0;
+            for i in 0..n {
+                zt[i] /= nz;
+                zr[i] = <Space as Dim<D>>::ang_scale(zr[i], 1.0 / nz);
+                probe.x[i] = self.p.x0[i] + zt[i] * eps;
+                probe.q[i] =
+                    <Space as Dim<D>>::advance(&<Space as Dim<D>>::identity(), &zr[i], eps);
+            }
+            self.op
+                .forces(&probe, &self.bonds, &mut scratch, &mut f, &mut t);
+            let mut next_t: Vec<Vect<D>> = (0..n)
+                .map(|i| f[i] * (-1.0 / (eps * self.p.mass[i])))
+                .collect();
+            let mut next_r: Vec<<Space as Dim<D>>::Ang> = (0..n)
+                .map(|i| {
+                    if rotational {
+                        <Space as Dim<D>>::ang_scale(t[i], -1.0 / (eps * self.p.inertia[i]))
+                    } else {
+                        <Space as Dim<D>>::ang_zero()
+                    }
+                })
+                .collect();
+            mask(&self.p, &mut next_t, &mut next_r);
+            // Rayleigh quotient <z, A z>_M with |z|_M = 1.
+            lambda = (0..n)
+                .map(|i| {
+                    self.p.mass[i] * zt[i].dot(&next_t[i])
+                        + self.p.inertia[i] * <Space as Dim<D>>::ang_dot(zr[i], next_r[i])
+                })
+                .sum::<f64>();
+            zt = next_t;
+            zr = next_r;
+        }
+        lambda.max(0.0).sqrt()
+    }
+}

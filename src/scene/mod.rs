@@ -1,0 +1,410 @@
+//! Scenes as serde data (JSON or TOML): bodies as boxes of particles, materials, boundary groups
+//! and load regions selected by region, gravity with the paper's ramp, probes, run settings.
+//! `Scene::validate` names the field and the problem for every bad input; `build` makes a World.
+mod build;
+
+pub use build::{Model, ProbeAt};
+
+use crate::physics::{Material, SolverOptions};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// A scene file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Short identifier (also the FMU model identifier); letters, digits and '_'.
+    pub name: String,
+    /// Free text: what the scene is and the choices the paper leaves open.
+    #[serde(default)]
+    pub description: String,
+    /// 2 or 3.
+    pub dimension: usize,
+    /// Initial particle spacing l0 = dp (m).
+    pub particle_spacing: f64,
+    #[serde(default)]
+    pub solver: SolverOptions,
+    #[serde(default)]
+    pub gravity: Gravity,
+    pub bodies: Vec<Body>,
+    #[serde(default)]
+    pub boundaries: Vec<Boundary>,
+    #[serde(default)]
+    pub loads: Vec<LoadSpec>,
+    #[serde(default)]
+    pub probes: Vec<Probe>,
+    /// Simulated time (s).
+    pub end_time: f64,
+    /// Interval of the probe time series (s).
+    pub output_interval: f64,
+    /// What to measure from the probe series (optional).
+    #[serde(default)]
+    pub analysis: Option<Analysis>,
+}
+
+/// Gravity: a vector (m/s^2) and an optional ramp.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct Gravity {
+    /// Full gravity vector (m/s^2), `dimension` components.
+    pub vector: Vec<f64>,
+    /// Eq. (46) with this T (s): the full vector is reached smoothly at 0.2 T. None: sudden.
+    #[serde(default)]
+    pub paper_ramp_period: Option<f64>,
+}
+
+/// An axis-aligned box (m), `dimension` components each.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Region {
+    pub min: Vec<f64>,
+    pub max: Vec<f64>,
+}
+
+/// A body: boxes filled with particles at the centres of cells of side `particle_spacing`.
+/// Particles of all boxes of a body are bonded together; a particle closer than l0 / 4 to one of
+/// an earlier box is dropped. A later box with another lattice offset puts a layer of particles
+/// exactly on a face (used for supports: see docs/model.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Body {
+    pub name: String,
+    pub material: Material,
+    /// Extents (m); each side must be a whole number of particle spacings.
+    pub boxes: Vec<Region>,
+    /// Initial velocity (m/s).
+    #[serde(default)]
+    pub velocity: Option<Vec<f64>>,
+}
+
+/// Kind of boundary group.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BoundaryKind {
+    /// Translation along all axes and rotation held (displacement settable from outside).
+    Clamped,
+    /// Translation held along `axes`, rotation free.
+    Pinned,
+    /// Translation along `axes` follows a displacement set from outside; rotation held.
+    Prescribed,
+}
+
+/// A boundary group: the particles of `body` inside `region`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Boundary {
+    pub name: String,
+    pub kind: BoundaryKind,
+    pub body: String,
+    pub region: Region,
+    /// Axes ("x", "y", "z") for pinned and prescribed groups; default all.
+    #[serde(default)]
+    pub axes: Option<Vec<String>>,
+}
+
+/// A load region: the particles of `body` inside `region` share an external force.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadSpec {
+    pub name: String,
+    pub body: String,
+    pub region: Region,
+}
+
+/// A named point of a body whose displacement is reported (reference coordinates, m).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Probe {
+    pub name: String,
+    pub point: Vec<f64>,
+    /// The body the point belongs to; default: the body whose box contains it.
+    #[serde(default)]
+    pub body: Option<String>,
+}
+
+/// Measurements a scene asks for.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Analysis {
+    /// Probe whose displacement component gives the vibration frequency and peak deflection.
+    pub probe: String,
+    /// Component: "x", "y" or "z".
+    pub component: String,
+}
+
+/// A scene problem: which field and what is wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("scene error in {field}: {message}")]
+pub struct SceneError {
+    pub field: String,
+    pub message: String,
+}
+
+pub(crate) fn err(field: impl Into<String>, message: impl Into<String>) -> SceneError {
+    SceneError {
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
+/// Index of an axis name.
+pub fn axis_index(name: &str) -> Option<usize> {
+    match name {
+        "x" => Some(0),
+        "y" => Some(1),
+        "z" => Some(2),
+        _ => None,
+    }
+}
+
+impl Scene {
+    /// Parses JSON.
+    pub fn from_json(text: &str) -> Result<Scene, SceneError> {
+        let s: Scene = serde_json::from_str(text).map_err(|e| err("<json>", e.to_string()))?;
+        s.validate()?;
+        Ok(s)
+    }
+    /// Parses TOML.
+    pub fn from_toml(text: &str) -> Result<Scene, SceneError> {
+        let s: Scene = toml::from_str(text).map_err(|e| err("<toml>", e.to_string()))?;
+        s.validate()?;
+        Ok(s)
+    }
+    /// Reads a .json or .toml file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| err("<file>", format!("cannot read {}: {e}", path.display())))?;
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("toml") => Scene::from_toml(&text),
+            _ => Scene::from_json(&text),
+        }
+    }
+    /// Serialises to pretty JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("scene serialises")
+    }
+
+    /// Checks every field; the first problem found is returned with its field path.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let d = self.dimension;
+        if d != 2 && d != 3 {
+            return Err(err("dimension", format!("must be 2 or 3, got {d}")));
+        }
+        if self.name.is_empty()
+            || !self
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_')
+            || self.name.starts_with(|c: char| c.is_ascii_digit())
+        {
+            return Err(err("name", format!("'{}' must be a non-empty identifier of letters, digits and '_' not starting with a digit", self.name)));
+        }
+        positive("particle_spacing", self.particle_spacing)?;
+        let o = &self.solver;
+        if !(o.re_factor.is_finite() && o.re_factor > 1.0 && o.re_factor <= 4.0) {
+            return Err(err(
+                "solver.re_factor",
+                format!("must be in (1, 4], got {}", o.re_factor),
+            ));
+        }
+        if !(o.stabilisation.is_finite() && o.stabilisation >= 0.0) {
+            return Err(err(
+                "solver.stabilisation",
+                format!("must be >= 0, got {}", o.stabilisation),
+            ));
+        }
+        if let Some(dt) = o.dt {
+            positive("solver.dt", dt)?;
+        }
+        if !(o.safety.is_finite() && o.safety > 0.0 && o.safety <= 1.0) {
+            return Err(err(
+                "solver.safety",
+                format!("must be in (0, 1], got {}", o.safety),
+            ));
+        }
+        if !(o.damping.is_finite() && o.damping >= 0.0) {
+            return Err(err(
+                "solver.damping",
+                format!("must be >= 0, got {}", o.damping),
+            ));
+        }
+        positive("end_time", self.end_time)?;
+        positive("output_interval", self.output_interval)?;
+        if !self.gravity.vector.is_empty() {
+            vector("gravity.vector", &self.gravity.vector, d)?;
+        }
+        if let Some(t) = self.gravity.paper_ramp_period {
+            positive("gravity.paper_ramp_period", t)?;
+        }
+        if self.bodies.is_empty() {
+            return Err(err("bodies", "a scene needs at least one body"));
+        }
+        let mut total: f64 = 0.0;
+        for (k, b) in self.bodies.iter().enumerate() {
+            let f = format!("bodies[{k}] ('{}')", b.name);
+            if self.bodies[..k].iter().any(|o| o.name == b.name) {
+                return Err(err(format!("{f}.name"), "duplicate body name"));
+            }
+            let m = &b.material;
+            positive(&format!("{f}.material.density"), m.density)?;
+            positive(&format!("{f}.material.young"), m.young)?;
+            if !(m.poisson.is_finite() && m.poisson > -1.0 && m.poisson < 0.5) {
+                return Err(err(
+                    format!("{f}.material.poisson"),
+                    format!("must be in (-1, 0.5), got {}", m.poisson),
+                ));
+            }
+            if b.boxes.is_empty() {
+                return Err(err(format!("{f}.boxes"), "a body needs at least one box"));
+            }
+            for (j, r) in b.boxes.iter().enumerate() {
+                let counts = self.cell_counts(r, &format!("{f}.boxes[{j}]"))?;
+                total += counts.iter().map(|&c| c as f64).product::<f64>();
+            }
+            if let Some(v) = &b.velocity {
+                vector(&format!("{f}.velocity"), v, d)?;
+            }
+        }
+        if total > self.solver.max_particles as f64 {
+            return Err(err(
+                "bodies",
+                format!(
+                    "{total} particles exceed solver.max_particles = {}",
+                    self.solver.max_particles
+                ),
+            ));
+        }
+        for (k, g) in self.boundaries.iter().enumerate() {
+            let f = format!("boundaries[{k}] ('{}')", g.name);
+            self.body_index(&g.body)
+                .ok_or_else(|| err(format!("{f}.body"), format!("no body named '{}'", g.body)))?;
+            region(&format!("{f}.region"), &g.region, d)?;
+            if self.boundaries[..k].iter().any(|o| o.name == g.name) {
+                return Err(err(format!("{f}.name"), "duplicate boundary name"));
+            }
+            if let Some(axes) = &g.axes {
+                if axes.is_empty() {
+                    return Err(err(format!("{f}.axes"), "must name at least one axis"));
+                }
+                for a in axes {
+                    if axis_index(a).is_none_or(|i| i >= d) {
+                        return Err(err(
+                            format!("{f}.axes"),
+                            format!("'{a}' is not an axis of a {d}D scene"),
+                        ));
+                    }
+                }
+            }
+        }
+        for (k, l) in self.loads.iter().enumerate() {
+            let f = format!("loads[{k}] ('{}')", l.name);
+            self.body_index(&l.body)
+                .ok_or_else(|| err(format!("{f}.body"), format!("no body named '{}'", l.body)))?;
+            region(&format!("{f}.region"), &l.region, d)?;
+        }
+        for (k, p) in self.probes.iter().enumerate() {
+            let f = format!("probes[{k}] ('{}')", p.name);
+            vector(&format!("{f}.point"), &p.point, d)?;
+            if self.probes[..k].iter().any(|o| o.name == p.name) {
+                return Err(err(format!("{f}.name"), "duplicate probe name"));
+            }
+            let inside = |b: &Body| {
+                b.boxes.iter().any(|r| {
+                    (0..d).all(|i| p.point[i] >= r.min[i] - 1e-9 && p.point[i] <= r.max[i] + 1e-9)
+                })
+            };
+            match &p.body {
+                Some(name) => {
+                    let bi = self.body_index(name).ok_or_else(|| {
+                        err(format!("{f}.body"), format!("no body named '{name}'"))
+                    })?;
+                    if !inside(&self.bodies[bi]) {
+                        return Err(err(
+                            format!("{f}.point"),
+                            format!("{:?} is outside body '{name}'", p.point),
+                        ));
+                    }
+                }
+                None => {
+                    if !self.bodies.iter().any(inside) {
+                        return Err(err(
+                            format!("{f}.point"),
+                            format!("{:?} is outside every body", p.point),
+                        ));
+                    }
+                }
+            }
+        }
+        if let Some(a) = &self.analysis {
+            if !self.probes.iter().any(|p| p.name == a.probe) {
+                return Err(err(
+                    "analysis.probe",
+                    format!("no probe named '{}'", a.probe),
+                ));
+            }
+            if axis_index(&a.component).is_none_or(|i| i >= d) {
+                return Err(err(
+                    "analysis.component",
+                    format!("'{}' is not an axis", a.component),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    pub fn body_index(&self, name: &str) -> Option<usize> {
+        self.bodies.iter().position(|b| b.name == name)
+    }
+
+    /// Number of particle cells along each axis of a body box.
+    pub(crate) fn cell_counts(&self, r: &Region, field: &str) -> Result<Vec<usize>, SceneError> {
+        region(field, r, self.dimension)?;
+        let dp = self.particle_spacing;
+        (0..self.dimension)
+            .map(|k| {
+                let len = r.max[k] - r.min[k];
+                let n = (len / dp).round();
+                if n < 1.0 || (n * dp - len).abs() > 1e-6 * dp {
+                    return Err(err(field, format!("side {k} has length {len} m, which is not a whole number (>= 1) of particle_spacing = {dp} m")));
+                }
+                if n > 1e7 {
+                    return Err(err(field, format!("side {k} holds {n} particles")));
+                }
+                Ok(n as usize)
+            })
+            .collect()
+    }
+}
+
+fn positive(field: &str, v: f64) -> Result<(), SceneError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(err(
+            field,
+            format!("must be a positive finite number, got {v}"),
+        ))
+    }
+}
+
+fn vector(field: &str, v: &[f64], d: usize) -> Result<(), SceneError> {
+    if v.len() != d {
+        return Err(err(
+            field,
+            format!("must have {d} components, got {}", v.len()),
+        ));
+    }
+    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+        return Err(err(field, format!("component {x} is not finite")));
+    }
+    Ok(())
+}
+
+fn region(field: &str, r: &Region, d: usize) -> Result<(), SceneError> {
+    vector(&format!("{field}.min"), &r.min, d)?;
+    vector(&format!("{field}.max"), &r.max, d)?;
+    if (0..d).any(|k| r.max[k] < r.min[k]) {
+        return Err(err(field, "max must not be below min"));
+    }
+    Ok(())
+}

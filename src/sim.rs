@@ -1,0 +1,126 @@
+//! A simulation of either dimension behind one type, chosen by the scene: what the command line
+//! and the FMI layer use. Values cross this boundary as 3-arrays (z = 0 in 2D).
+use crate::physics::dim::{from3, to3};
+use crate::physics::world::WorldState;
+use crate::physics::SimError;
+use crate::scene::{Model, Scene, SceneError};
+use serde::{Deserialize, Serialize};
+
+/// A built scene of dimension 2 or 3.
+pub enum Simulation {
+    D2(Box<Model<2>>),
+    D3(Box<Model<3>>),
+}
+
+/// The evolving state of a simulation as plain data (serde): FMU state, checkpoints.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum SimState {
+    D2(WorldState<2>),
+    D3(WorldState<3>),
+}
+
+macro_rules! with {
+    ($s:expr, $m:ident => $e:expr) => {
+        match $s {
+            Simulation::D2($m) => $e,
+            Simulation::D3($m) => $e,
+        }
+    };
+}
+
+impl Simulation {
+    /// Validates the scene and builds its world.
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        scene.validate()?;
+        Ok(match scene.dimension {
+            2 => Simulation::D2(Box::new(Model::<2>::build(scene)?)),
+            _ => Simulation::D3(Box::new(Model::<3>::build(scene)?)),
+        })
+    }
+    pub fn dimension(&self) -> usize {
+        with!(self, _m => if matches!(self, Simulation::D2(_)) { 2 } else { 3 })
+    }
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        with!(self, m => m.world.time)
+    }
+    /// Steps taken since the start.
+    pub fn steps(&self) -> u64 {
+        with!(self, m => m.world.steps)
+    }
+    pub fn particles(&self) -> usize {
+        with!(self, m => m.world.len())
+    }
+    /// Stored (directed) bonds.
+    pub fn bonds(&self) -> usize {
+        with!(self, m => m.world.bonds.len())
+    }
+    /// Stability limit 2 / omega_max of the particle model (s).
+    pub fn critical_dt(&self) -> f64 {
+        with!(self, m => m.world.critical_dt())
+    }
+    /// Largest step the solver takes (s).
+    pub fn max_dt(&self) -> f64 {
+        with!(self, m => m.world.max_dt())
+    }
+    /// Advances to t_end, landing on it exactly; returns the steps taken.
+    pub fn advance_to(&mut self, t_end: f64) -> Result<u64, SimError> {
+        with!(self, m => m.world.advance_to(t_end))
+    }
+    /// Sets a constant gravity vector (m/s^2), replacing any ramp.
+    pub fn set_gravity(&mut self, g: [f64; 3]) {
+        with!(self, m => m.world.set_gravity(from3(g)))
+    }
+    /// Current gravity (m/s^2).
+    pub fn gravity(&self) -> [f64; 3] {
+        with!(self, m => to3(&m.world.gravity.at(m.world.time)))
+    }
+    /// Sets the displacement boundary group g reaches at the end of the next advance (m).
+    pub fn set_group_displacement(&mut self, g: usize, d: [f64; 3]) {
+        with!(self, m => m.world.set_group_target(g, from3(d)))
+    }
+    /// Displacement of boundary group g at the current time (m).
+    pub fn group_displacement(&self, g: usize) -> [f64; 3] {
+        with!(self, m => to3(&m.world.groups[g].motion.at(m.world.time)))
+    }
+    /// Sets the total external force on load region r (N).
+    pub fn set_load(&mut self, r: usize, f: [f64; 3]) {
+        with!(self, m => m.world.set_load(r, from3(f)))
+    }
+    pub fn load(&self, r: usize) -> [f64; 3] {
+        with!(self, m => to3(&m.world.loads[r].force))
+    }
+    /// Displacement of probe k (m).
+    pub fn probe_displacement(&self, k: usize) -> [f64; 3] {
+        with!(self, m => to3(&m.probe_displacement(k)))
+    }
+    /// Reaction force of boundary group g on the body (N).
+    pub fn group_reaction(&self, g: usize) -> [f64; 3] {
+        with!(self, m => to3(&m.world.groups[g].reaction))
+    }
+    /// Kinetic energy (J).
+    pub fn kinetic_energy(&self) -> f64 {
+        with!(self, m => m.world.kinetic_energy())
+    }
+    /// Strain energy (J).
+    pub fn strain_energy(&self) -> f64 {
+        with!(self, m => m.world.strain_energy())
+    }
+    /// Number of broken bonds (each pair counted once).
+    pub fn broken_bonds(&self) -> u64 {
+        with!(self, m => m.world.bonds.w0.iter().filter(|&&w| w == 0.0).count() as u64 / 2)
+    }
+    pub fn state(&self) -> SimState {
+        match self {
+            Simulation::D2(m) => SimState::D2(m.world.state()),
+            Simulation::D3(m) => SimState::D3(m.world.state()),
+        }
+    }
+    pub fn set_state(&mut self, s: &SimState) -> Result<(), SimError> {
+        match (self, s) {
+            (Simulation::D2(m), SimState::D2(s)) => m.world.set_state(s),
+            (Simulation::D3(m), SimState::D3(s)) => m.world.set_state(s),
+            _ => Err(SimError::Invalid("state of the other dimension".into())),
+        }
+    }
+}

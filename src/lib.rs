@@ -6,6 +6,7 @@
 //! type), then the command line and `fmi`.
 pub mod analysis;
 pub mod cases;
+pub mod fmi;
 pub mod physics;
 pub mod scene;
 pub mod sim;

@@ -1,0 +1,73 @@
+//! Shared builders for the integration tests.
+#![allow(dead_code)]
+use mps_solid::physics::boundary::GravityLaw;
+use mps_solid::physics::world::GroupInit;
+use mps_solid::physics::{
+    BodyInit, Dim, ElasticModel, Material, SolverOptions, Space, Vect, World,
+};
+
+pub const STEEL_LIKE: Material = Material {
+    density: 1000.0,
+    young: 1.0e7,
+    poisson: 0.3,
+};
+
+/// A block of nx x ny (x nz) particles at spacing l0, centred on the origin.
+pub fn block<const D: usize>(n: [usize; 3], l0: f64) -> Vec<Vect<D>> {
+    let mut pts = Vec::new();
+    let total: usize = n[..D].iter().product();
+    for code in 0..total {
+        let mut c = code;
+        let mut p = Vect::<D>::zeros();
+        for a in 0..D {
+            p[a] = ((c % n[a]) as f64 - 0.5 * (n[a] - 1) as f64) * l0;
+            c /= n[a];
+        }
+        pts.push(p);
+    }
+    pts
+}
+
+/// A free body (no gravity, no supports) of the given model.
+pub fn free_world<const D: usize>(n: [usize; 3], model: ElasticModel) -> World<D>
+where
+    Space: Dim<D>,
+{
+    let l0 = 0.01;
+    let opts = SolverOptions {
+        model,
+        ..SolverOptions::default()
+    };
+    let body = BodyInit {
+        name: "block".into(),
+        material: STEEL_LIKE,
+        points: block::<D>(n, l0),
+        velocity: Vect::<D>::zeros(),
+    };
+    World::new(
+        l0,
+        opts,
+        vec![body],
+        Vec::<GroupInit>::new(),
+        vec![],
+        GravityLaw::Constant(Vect::<D>::zeros()),
+    )
+    .unwrap()
+}
+
+/// Deterministic pseudo-random numbers in [-0.5, 0.5).
+pub struct Rng(pub u64);
+impl Rng {
+    pub fn next(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+}
+
+pub const MODELS: [ElasticModel; 3] = [
+    ElasticModel::Corrected,
+    ElasticModel::Paper,
+    ElasticModel::PaperLocal,
+];

@@ -209,3 +209,12 @@ pub const PAPER_TABLE1: [(&str, f64, f64, f64); 3] = [
     ("FEM (paper)", 0.095, 10.53, -0.056),
     ("Euler-Bernoulli (paper)", 0.081, 12.35, -0.042),
 ];
+
+/// The user-facing scene files under `scenes/`: cases 1 and 2 at the paper's dp = 0.025 m with
+/// the automatic time step and the corrected operator.
+pub fn paper_scenes() -> Vec<Scene> {
+    vec![
+        case1_scene(0.025, ElasticModel::Corrected, None),
+        case2_scene(0.025, ElasticModel::Corrected, None, Support::Face),
+    ]
+}

@@ -9,6 +9,8 @@ pub mod case3;
 pub mod cases;
 pub mod fmi;
 pub mod physics;
+pub mod report;
+pub mod runner;
 pub mod scene;
 pub mod sim;
 

@@ -1,1 +1,225 @@
-fn main() {}
+//! Command line: run a scene, run the paper's cases against their references, write the scene
+//! files, pack an FMU.
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use mps_solid::cases::{case1_scene, case2_scene, Support};
+use mps_solid::physics::ElasticModel;
+use mps_solid::report;
+use mps_solid::runner::{run_scene, series_csv};
+use mps_solid::Scene;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "mps",
+    version,
+    about = "MPS particle solver for elastic solids (Amaro Junior, Cheng & Tsukamoto)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Model {
+    Corrected,
+    Paper,
+    PaperLocal,
+}
+
+impl From<Model> for ElasticModel {
+    fn from(m: Model) -> Self {
+        match m {
+            Model::Corrected => ElasticModel::Corrected,
+            Model::Paper => ElasticModel::Paper,
+            Model::PaperLocal => ElasticModel::PaperLocal,
+        }
+    }
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run a scene file (JSON or TOML): probe series as CSV, a summary, optionally JSON.
+    Run {
+        scene: PathBuf,
+        /// Directory for probes.csv and summary.json.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Print the result (including the series) as JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Run the paper's cases 1 and 2 and print each result beside its references.
+    Cases {
+        /// Particle spacing (m); the paper uses 0.025.
+        #[arg(long, default_value_t = 0.025)]
+        dp: f64,
+        /// Models to run (default: corrected for both cases, plus the paper's operators for case 2).
+        #[arg(long, value_enum)]
+        model: Vec<Model>,
+        /// Fixed time step (s) instead of the automatic one (the paper uses 1e-5).
+        #[arg(long)]
+        dt: Option<f64>,
+        /// Print JSON instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write the paper's scene files (as used under scenes/) into a directory.
+    Scenes {
+        #[arg(default_value = "scenes")]
+        dir: PathBuf,
+    },
+}
+
+fn progress(len: f64, label: &str) -> ProgressBar {
+    let pb = ProgressBar::new((len * 1e6) as u64);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{msg:>24} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}",
+        )
+        .unwrap()
+        .progress_chars("=> "),
+    );
+    pb.set_message(label.to_string());
+    pb
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<ExitCode, String> {
+    match cli.cmd {
+        Cmd::Run { scene, out, json } => {
+            let sc = Scene::load(&scene).map_err(|e| e.to_string())?;
+            let pb = progress(sc.end_time, &sc.name);
+            let r = run_scene(&sc, |t| pb.set_position((t * 1e6) as u64))?;
+            pb.finish_and_clear();
+            std::fs::create_dir_all(&out)
+                .map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+            let csv = out.join("probes.csv");
+            std::fs::write(&csv, series_csv(&r.series, r.dimension))
+                .map_err(|e| format!("cannot write {}: {e}", csv.display()))?;
+            let mut summary = serde_json::to_value(&r).expect("serialisable");
+            summary.as_object_mut().expect("object").remove("series");
+            std::fs::write(
+                out.join("summary.json"),
+                serde_json::to_string_pretty(&summary).unwrap(),
+            )
+            .map_err(|e| e.to_string())?;
+            if json {
+                println!("{}", serde_json::to_string(&r).unwrap());
+            } else {
+                println!(
+                    "{}: {} particles, {} bonds, {} steps of {:.3e} s (critical {:.3e} s) to t = {} s in {:.2} s ({:.3e} pair-updates/s)",
+                    r.scene, r.particles, r.bonds, r.steps, r.dt, r.critical_dt, r.end_time, r.wall_time_s, r.pair_updates_per_s
+                );
+                for (name, u) in &r.final_displacement {
+                    println!(
+                        "  probe {name}: u = [{:.6e}, {:.6e}, {:.6e}] m",
+                        u[0], u[1], u[2]
+                    );
+                }
+                if let (Some(f), Some(p)) = (r.frequency_hz, r.peak_m) {
+                    println!("  frequency {f:.4} Hz, peak {p:.6e} m");
+                }
+                println!("  series written to {}", csv.display());
+            }
+            if let Some(e) = &r.error {
+                eprintln!("error: the run stopped early: {e}");
+                return Ok(ExitCode::FAILURE);
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Cases {
+            dp,
+            model,
+            dt,
+            json,
+        } => {
+            let runs: Vec<(u8, ElasticModel)> = if model.is_empty() {
+                vec![
+                    (1, ElasticModel::Corrected),
+                    (2, ElasticModel::Corrected),
+                    (2, ElasticModel::Paper),
+                    (2, ElasticModel::PaperLocal),
+                ]
+            } else {
+                model
+                    .iter()
+                    .flat_map(|&m| [(1, m.into()), (2, m.into())])
+                    .collect()
+            };
+            let mut out = Vec::new();
+            let mut failed = false;
+            for (case, m) in runs {
+                let label = format!("case {case} {m:?}");
+                let (end, res) = match case {
+                    1 => {
+                        let pb = progress(case1_scene(dp, m, dt).end_time, &label);
+                        let r = report::case1(dp, m, dt, |t| pb.set_position((t * 1e6) as u64));
+                        pb.finish_and_clear();
+                        (
+                            r.as_ref().map(report::case1_text).map_err(|e| e.clone()),
+                            r.and_then(|r| serde_json::to_value(r).map_err(|e| e.to_string())),
+                        )
+                    }
+                    _ => {
+                        let pb = progress(case2_scene(dp, m, dt, Support::Face).end_time, &label);
+                        let r = report::case2(dp, m, dt, |t| pb.set_position((t * 1e6) as u64));
+                        pb.finish_and_clear();
+                        (
+                            r.as_ref().map(report::case2_text).map_err(|e| e.clone()),
+                            r.and_then(|r| serde_json::to_value(r).map_err(|e| e.to_string())),
+                        )
+                    }
+                };
+                match (end, res) {
+                    (Ok(text), Ok(v)) => {
+                        if v["run"]["error"].is_string() {
+                            failed = true;
+                        }
+                        if !json {
+                            println!("{text}");
+                        }
+                        out.push(v);
+                    }
+                    (Err(e), _) | (_, Err(e)) => {
+                        eprintln!("error: {label}: {e}");
+                        failed = true;
+                    }
+                }
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&out).unwrap());
+            }
+            Ok(if failed {
+                ExitCode::FAILURE
+            } else {
+                ExitCode::SUCCESS
+            })
+        }
+        Cmd::Scenes { dir } => {
+            std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+            for sc in paper_scenes() {
+                let path = dir.join(format!("{}.json", sc.name));
+                std::fs::write(&path, sc.to_json() + "\n")
+                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}
+
+/// The scene files of scenes/: the paper's cases at the paper's spacing.
+fn paper_scenes() -> Vec<Scene> {
+    mps_solid::cases::paper_scenes()
+}

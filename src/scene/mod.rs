@@ -160,13 +160,17 @@ pub fn axis_index(name: &str) -> Option<usize> {
 impl Scene {
     /// Parses JSON.
     pub fn from_json(text: &str) -> Result<Scene, SceneError> {
-        let s: Scene = serde_json::from_str(text).map_err(|e| err("<json>", e.to_string()))?;
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let s: Scene = serde_path_to_error::deserialize(de)
+            .map_err(|e| err(e.path().to_string(), e.inner().to_string()))?;
         s.validate()?;
         Ok(s)
     }
     /// Parses TOML.
     pub fn from_toml(text: &str) -> Result<Scene, SceneError> {
-        let s: Scene = toml::from_str(text).map_err(|e| err("<toml>", e.to_string()))?;
+        let de = toml::Deserializer::new(text);
+        let s: Scene = serde_path_to_error::deserialize(de)
+            .map_err(|e| err(e.path().to_string(), e.inner().to_string()))?;
         s.validate()?;
         Ok(s)
     }

@@ -1,0 +1,166 @@
+//! Bad scenes give an error naming the field and the problem, never a panic.
+use mps_solid::cases::{case1_scene, case2_scene, Support};
+use mps_solid::physics::ElasticModel;
+use mps_solid::{Scene, Simulation};
+
+fn base() -> serde_json::Value {
+    serde_json::from_str(
+        &case2_scene(0.025, ElasticModel::Corrected, None, Support::Face).to_json(),
+    )
+    .unwrap()
+}
+
+fn error_of(v: serde_json::Value) -> String {
+    let text = v.to_string();
+    match Scene::from_json(&text) {
+        Ok(s) => match Simulation::new(&s) {
+            Ok(_) => panic!("scene accepted: {text}"),
+            Err(e) => e.to_string(),
+        },
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn each_bad_field_is_named() {
+    let cases: Vec<(&str, Box<dyn Fn(&mut serde_json::Value)>, &str)> = vec![
+        (
+            "unknown field",
+            Box::new(|v| v["colour"] = "red".into()),
+            "unknown field `colour`",
+        ),
+        (
+            "nested unknown field",
+            Box::new(|v| v["bodies"][0]["material"]["yield"] = 1.0.into()),
+            "unknown field `yield`",
+        ),
+        (
+            "nu = 0.5",
+            Box::new(|v| v["bodies"][0]["material"]["poisson"] = 0.5.into()),
+            "material.poisson",
+        ),
+        (
+            "E = 0",
+            Box::new(|v| v["bodies"][0]["material"]["young"] = 0.0.into()),
+            "material.young",
+        ),
+        (
+            "E < 0",
+            Box::new(|v| v["bodies"][0]["material"]["young"] = (-1.0).into()),
+            "material.young",
+        ),
+        (
+            "rho = 0",
+            Box::new(|v| v["bodies"][0]["material"]["density"] = 0.0.into()),
+            "material.density",
+        ),
+        (
+            "dp = 0",
+            Box::new(|v| v["particle_spacing"] = 0.0.into()),
+            "particle_spacing",
+        ),
+        (
+            "dp < 0",
+            Box::new(|v| v["particle_spacing"] = (-0.1).into()),
+            "particle_spacing",
+        ),
+        (
+            "no bodies",
+            Box::new(|v| v["bodies"] = serde_json::json!([])),
+            "bodies",
+        ),
+        (
+            "no boxes",
+            Box::new(|v| v["bodies"][0]["boxes"] = serde_json::json!([])),
+            "boxes",
+        ),
+        (
+            "box not a multiple of dp",
+            Box::new(|v| v["bodies"][0]["boxes"][0]["max"][0] = 1.01.into()),
+            "boxes[0]",
+        ),
+        (
+            "probe outside",
+            Box::new(|v| v["probes"][0]["point"] = serde_json::json!([5.0, 0.0, 0.0])),
+            "probes[0]",
+        ),
+        (
+            "2 components in 3D",
+            Box::new(|v| v["gravity"]["vector"] = serde_json::json!([0.0, -9.81])),
+            "gravity.vector",
+        ),
+        (
+            "dimension 4",
+            Box::new(|v| v["dimension"] = 4.into()),
+            "dimension",
+        ),
+        (
+            "too many particles",
+            Box::new(|v| v["solver"]["max_particles"] = 100.into()),
+            "max_particles",
+        ),
+        (
+            "negative end time",
+            Box::new(|v| v["end_time"] = (-1.0).into()),
+            "end_time",
+        ),
+        (
+            "unknown body of a group",
+            Box::new(|v| v["boundaries"][0]["body"] = "nope".into()),
+            "boundaries[0]",
+        ),
+        (
+            "empty region",
+            Box::new(|v| v["boundaries"][0]["region"]["min"][0] = 5.0.into()),
+            "boundaries[0]",
+        ),
+        (
+            "bad axis",
+            Box::new(|v| v["boundaries"][1]["axes"] = serde_json::json!(["w"])),
+            "axes",
+        ),
+        (
+            "bad model",
+            Box::new(|v| v["solver"]["model"] = "magic".into()),
+            "model",
+        ),
+        (
+            "safety above 1",
+            Box::new(|v| v["solver"]["safety"] = 2.0.into()),
+            "solver.safety",
+        ),
+        (
+            "bad name",
+            Box::new(|v| v["name"] = "1 bad name".into()),
+            "name",
+        ),
+    ];
+    for (what, edit, needle) in cases {
+        let mut v = base();
+        edit(&mut v);
+        let e = error_of(v);
+        assert!(
+            e.contains(needle),
+            "{what}: error '{e}' does not mention '{needle}'"
+        );
+    }
+}
+
+#[test]
+fn malformed_text_is_an_error_not_a_panic() {
+    for text in ["", "{", "[]", "null", "{\"name\": 3}", "\u{0}"] {
+        assert!(Scene::from_json(text).is_err());
+    }
+    assert!(Scene::from_toml("name = ").is_err());
+    assert!(Scene::load(std::path::Path::new("/nonexistent/scene.json"))
+        .unwrap_err()
+        .to_string()
+        .contains("cannot read"));
+}
+
+#[test]
+fn toml_and_json_describe_the_same_scene() {
+    let s = case1_scene(0.05, ElasticModel::Corrected, None);
+    let t = toml::to_string(&s).unwrap();
+    assert_eq!(Scene::from_toml(&t).unwrap(), s);
+}

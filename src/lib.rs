@@ -5,6 +5,7 @@
 //! over the dimension), `scene` (serde scene files -> World), `sim` (either dimension behind one
 //! type), then the command line and `fmi`.
 pub mod analysis;
+pub mod bench;
 pub mod case3;
 pub mod cases;
 pub mod fmi;

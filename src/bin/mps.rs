@@ -65,6 +65,15 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Benchmark: run time against error for cases 1 and 2 (prints Markdown; see BENCHMARKS.md).
+    Bench {
+        /// Two small runs only.
+        #[arg(long)]
+        quick: bool,
+        /// Also write the Markdown into this file.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Write the paper's scene files (as used under scenes/) into a directory.
     Scenes {
         #[arg(default_value = "scenes")]
@@ -205,6 +214,24 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             } else {
                 ExitCode::SUCCESS
             })
+        }
+        Cmd::Bench { quick, out } => {
+            use mps_solid::bench;
+            let mut rows = Vec::new();
+            for (case, dp, dt) in bench::plan(quick) {
+                eprintln!("bench: case {case}, dp {dp}, dt {dt:?}");
+                let row = bench::run_row(case, dp, dt)?;
+                eprintln!("  {} steps, {:.2} s, error {:+.2}%", row.steps, row.wall_s, 100.0 * row.error);
+                rows.push(row);
+            }
+            let single = bench::single_thread_throughput().ok();
+            let stability: Vec<(f64, String)> = if quick { vec![] } else { [0.8, 1.0, 1.25, 2.0].iter().map(|&f| (f, bench::stability_probe(f))).collect() };
+            let md = bench::markdown(&rows, single, &stability, rayon::current_num_threads());
+            println!("{md}");
+            if let Some(path) = out {
+                std::fs::write(&path, md).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            }
+            Ok(ExitCode::SUCCESS)
         }
         Cmd::Scenes { dir } => {
             std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;

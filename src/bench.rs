@@ -1,0 +1,136 @@
+//! The benchmark: run time against error for cases 1 and 2 over particle spacings, with the
+//! automatic step and the paper's fixed step; single-thread force-loop throughput; the stable
+//! step probed at multiples of the bound. Prints a Markdown table (kept in BENCHMARKS.md).
+use crate::cases::{case2_scene, Support};
+use crate::physics::ElasticModel;
+use crate::report;
+use crate::sim::Simulation;
+use std::fmt::Write;
+use std::time::Instant;
+
+/// One benchmark row.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Row {
+    pub case: u8,
+    pub dp: f64,
+    pub step: String,
+    pub particles: usize,
+    pub bonds: usize,
+    pub steps: u64,
+    pub wall_s: f64,
+    pub pair_updates_per_s: f64,
+    /// Case 1: max-norm error of u_z over s >= 0.2; case 2: frequency error vs 3D FEM.
+    pub error: f64,
+    pub note: String,
+}
+
+/// Which runs: (case, dp, fixed dt).
+pub fn plan(quick: bool) -> Vec<(u8, f64, Option<f64>)> {
+    if quick {
+        return vec![(1, 0.05, None), (2, 0.025, None)];
+    }
+    vec![
+        (1, 0.05, None),
+        (1, 0.05, Some(1e-5)),
+        (1, 0.025, None),
+        (1, 0.025, Some(1e-5)),
+        (1, 0.0125, None),
+        (2, 0.025, None),
+        (2, 0.025, Some(1e-5)),
+        (2, 0.0125, None),
+    ]
+}
+
+/// Runs one row.
+pub fn run_row(case: u8, dp: f64, dt: Option<f64>) -> Result<Row, String> {
+    let step = dt.map(|d| format!("paper {d:e} s")).unwrap_or_else(|| "auto".into());
+    if case == 1 {
+        let r = report::case1(dp, ElasticModel::Corrected, dt, |_| {})?;
+        Ok(Row {
+            case,
+            dp,
+            step,
+            particles: r.run.particles,
+            bonds: r.run.bonds,
+            steps: r.run.steps,
+            wall_s: r.run.wall_time_s,
+            pair_updates_per_s: r.run.pair_updates_per_s,
+            error: r.error_uz,
+            note: format!("u_x err {:.2}%, dt {:.3e} s", 100.0 * r.error_ux, r.run.dt),
+        })
+    } else {
+        let r = report::case2(dp, ElasticModel::Corrected, dt, |_| {})?;
+        Ok(Row {
+            case,
+            dp,
+            step,
+            particles: r.run.particles,
+            bonds: r.run.bonds,
+            steps: r.run.steps,
+            wall_s: r.run.wall_time_s,
+            pair_updates_per_s: r.run.pair_updates_per_s,
+            error: r.frequency_error,
+            note: format!("f {:.3} Hz, peak err {:+.2}%, dt {:.3e} s", r.frequency_hz, 100.0 * r.peak_error, r.run.dt),
+        })
+    }
+}
+
+/// Force-loop throughput on one thread: directed bonds per second per force pass (case 2,
+/// dp = 0.025, 300 steps).
+pub fn single_thread_throughput() -> Result<f64, String> {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().map_err(|e| e.to_string())?;
+    pool.install(|| {
+        let mut sim = Simulation::new(&case2_scene(0.025, ElasticModel::Corrected, None, Support::Face)).map_err(|e| e.to_string())?;
+        let dt = sim.max_dt();
+        let start = Instant::now();
+        sim.advance_to(300.0 * dt).map_err(|e| e.to_string())?;
+        Ok(2.0 * sim.bonds() as f64 * sim.steps() as f64 / start.elapsed().as_secs_f64())
+    })
+}
+
+/// Runs case 2 (dp = 0.025) for 0.05 s at a multiple of the critical step; reports whether the
+/// solver stayed stable.
+pub fn stability_probe(factor: f64) -> String {
+    let mut sc = case2_scene(0.025, ElasticModel::Corrected, None, Support::Face);
+    let Ok(sim0) = Simulation::new(&sc) else { return "build failed".into() };
+    sc.solver.dt = Some(factor * sim0.critical_dt());
+    let mut sim = Simulation::new(&sc).expect("same scene");
+    match sim.advance_to(0.05) {
+        Ok(n) => format!("stable over {n} steps (max probe |u| {:.3e} m)", sim.probe_displacement(0).iter().fold(0.0f64, |a, v| a.max(v.abs()))),
+        Err(e) => format!("unstable: {e}"),
+    }
+}
+
+/// The Markdown report.
+pub fn markdown(rows: &[Row], single: Option<f64>, stability: &[(f64, String)], threads: usize) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "Machine: {} rayon threads. Model: corrected operator. Error: case 1 = max |u_z - closed form| / max |closed form| over s >= 0.2 m; case 2 = first frequency vs the converged 3D FEM reference.\n", threads);
+    let _ = writeln!(out, "| case | dp (m) | step | particles | bonds | steps | wall (s) | pair-updates/s | error | notes |");
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|");
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {:.2} | {:.3e} | {:+.2}% | {} |",
+            r.case,
+            r.dp,
+            r.step,
+            r.particles,
+            r.bonds,
+            r.steps,
+            r.wall_s,
+            r.pair_updates_per_s,
+            100.0 * r.error,
+            r.note
+        );
+    }
+    if let Some(s) = single {
+        let _ = writeln!(out, "\nSingle-thread 3D force loop (case 2, dp = 0.025): {s:.3e} pair-updates/s per core (a pair-update = one directed bond evaluated in one of the two force passes of a step).");
+    }
+    if !stability.is_empty() {
+        let _ = writeln!(out, "\nStable step (case 2, dp = 0.025, 0.05 s):\n");
+        for (f, s) in stability {
+            let _ = writeln!(out, "- dt = {f} x critical: {s}");
+        }
+    }
+    out
+}

@@ -44,35 +44,27 @@ pub fn plan(quick: bool) -> Vec<(u8, f64, Option<f64>)> {
 /// Runs one row.
 pub fn run_row(case: u8, dp: f64, dt: Option<f64>) -> Result<Row, String> {
     let step = dt.map(|d| format!("paper {d:e} s")).unwrap_or_else(|| "auto".into());
-    if case == 1 {
+    let (run, error, note) = if case == 1 {
         let r = report::case1(dp, ElasticModel::Corrected, dt, |_| {})?;
-        Ok(Row {
-            case,
-            dp,
-            step,
-            particles: r.run.particles,
-            bonds: r.run.bonds,
-            steps: r.run.steps,
-            wall_s: r.run.wall_time_s,
-            pair_updates_per_s: r.run.pair_updates_per_s,
-            error: r.error_uz,
-            note: format!("u_x err {:.2}%, dt {:.3e} s", 100.0 * r.error_ux, r.run.dt),
-        })
+        let note = format!("u_x err {:.2}%, dt {:.3e} s", 100.0 * r.error_ux, r.run.dt);
+        (r.run, r.error_uz, note)
     } else {
         let r = report::case2(dp, ElasticModel::Corrected, dt, |_| {})?;
-        Ok(Row {
-            case,
-            dp,
-            step,
-            particles: r.run.particles,
-            bonds: r.run.bonds,
-            steps: r.run.steps,
-            wall_s: r.run.wall_time_s,
-            pair_updates_per_s: r.run.pair_updates_per_s,
-            error: r.frequency_error,
-            note: format!("f {:.3} Hz, peak err {:+.2}%, dt {:.3e} s", r.frequency_hz, 100.0 * r.peak_error, r.run.dt),
-        })
-    }
+        let note = format!("f {:.3} Hz, peak err {:+.2}%, dt {:.3e} s", r.frequency_hz, 100.0 * r.peak_error, r.run.dt);
+        (r.run, r.frequency_error, note)
+    };
+    Ok(Row {
+        case,
+        dp,
+        step,
+        particles: run.particles,
+        bonds: run.bonds,
+        steps: run.steps,
+        wall_s: run.wall_time_s,
+        pair_updates_per_s: run.pair_updates_per_s,
+        error,
+        note,
+    })
 }
 
 /// Force-loop throughput on one thread: directed bonds per second per force pass (case 2,

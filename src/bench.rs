@@ -43,14 +43,21 @@ pub fn plan(quick: bool) -> Vec<(u8, f64, Option<f64>)> {
 
 /// Runs one row.
 pub fn run_row(case: u8, dp: f64, dt: Option<f64>) -> Result<Row, String> {
-    let step = dt.map(|d| format!("paper {d:e} s")).unwrap_or_else(|| "auto".into());
+    let step = dt
+        .map(|d| format!("paper {d:e} s"))
+        .unwrap_or_else(|| "auto".into());
     let (run, error, note) = if case == 1 {
         let r = report::case1(dp, ElasticModel::Corrected, dt, |_| {})?;
         let note = format!("u_x err {:.2}%, dt {:.3e} s", 100.0 * r.error_ux, r.run.dt);
         (r.run, r.error_uz, note)
     } else {
         let r = report::case2(dp, ElasticModel::Corrected, dt, |_| {})?;
-        let note = format!("f {:.3} Hz, peak err {:+.2}%, dt {:.3e} s", r.frequency_hz, 100.0 * r.peak_error, r.run.dt);
+        let note = format!(
+            "f {:.3} Hz, peak err {:+.2}%, dt {:.3e} s",
+            r.frequency_hz,
+            100.0 * r.peak_error,
+            r.run.dt
+        );
         (r.run, r.frequency_error, note)
     };
     Ok(Row {
@@ -70,9 +77,18 @@ pub fn run_row(case: u8, dp: f64, dt: Option<f64>) -> Result<Row, String> {
 /// Force-loop throughput on one thread: directed bonds per second per force pass (case 2,
 /// dp = 0.025, 300 steps).
 pub fn single_thread_throughput() -> Result<f64, String> {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().map_err(|e| e.to_string())?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| e.to_string())?;
     pool.install(|| {
-        let mut sim = Simulation::new(&case2_scene(0.025, ElasticModel::Corrected, None, Support::Face)).map_err(|e| e.to_string())?;
+        let mut sim = Simulation::new(&case2_scene(
+            0.025,
+            ElasticModel::Corrected,
+            None,
+            Support::Face,
+        ))
+        .map_err(|e| e.to_string())?;
         let dt = sim.max_dt();
         let start = Instant::now();
         sim.advance_to(300.0 * dt).map_err(|e| e.to_string())?;
@@ -84,17 +100,29 @@ pub fn single_thread_throughput() -> Result<f64, String> {
 /// solver stayed stable.
 pub fn stability_probe(factor: f64) -> String {
     let mut sc = case2_scene(0.025, ElasticModel::Corrected, None, Support::Face);
-    let Ok(sim0) = Simulation::new(&sc) else { return "build failed".into() };
+    let Ok(sim0) = Simulation::new(&sc) else {
+        return "build failed".into();
+    };
     sc.solver.dt = Some(factor * sim0.critical_dt());
     let mut sim = Simulation::new(&sc).expect("same scene");
     match sim.advance_to(0.05) {
-        Ok(n) => format!("stable over {n} steps (max probe |u| {:.3e} m)", sim.probe_displacement(0).iter().fold(0.0f64, |a, v| a.max(v.abs()))),
+        Ok(n) => format!(
+            "stable over {n} steps (max probe |u| {:.3e} m)",
+            sim.probe_displacement(0)
+                .iter()
+                .fold(0.0f64, |a, v| a.max(v.abs()))
+        ),
         Err(e) => format!("unstable: {e}"),
     }
 }
 
 /// The Markdown report.
-pub fn markdown(rows: &[Row], single: Option<f64>, stability: &[(f64, String)], threads: usize) -> String {
+pub fn markdown(
+    rows: &[Row],
+    single: Option<f64>,
+    stability: &[(f64, String)],
+    threads: usize,
+) -> String {
     let mut out = String::new();
     let _ = writeln!(out, "Machine: {} rayon threads. Model: corrected operator. Error: case 1 = max |u_z - closed form| / max |closed form| over s >= 0.2 m; case 2 = first frequency vs the converged 3D FEM reference.\n", threads);
     let _ = writeln!(out, "| case | dp (m) | step | particles | bonds | steps | wall (s) | pair-updates/s | error | notes |");

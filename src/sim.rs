@@ -12,6 +12,18 @@ pub enum Simulation {
     D3(Box<Model<3>>),
 }
 
+/// Per-particle data at one instant (3-arrays; z = 0 in 2D).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ParticleSnapshot {
+    pub time: f64,
+    pub body: Vec<u32>,
+    pub position: Vec<[f64; 3]>,
+    pub displacement: Vec<[f64; 3]>,
+    pub velocity: Vec<[f64; 3]>,
+    pub surface: Vec<bool>,
+    pub broken_bonds: Vec<u32>,
+}
+
 /// The evolving state of a simulation as plain data (serde): FMU state, checkpoints.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum SimState {
@@ -109,6 +121,64 @@ impl Simulation {
     /// Number of broken bonds (each pair counted once).
     pub fn broken_bonds(&self) -> u64 {
         with!(self, m => m.world.bonds.w0.iter().filter(|&&w| w == 0.0).count() as u64 / 2)
+    }
+    /// Broken bond pairs counted during the run (equals `broken_bonds` for bonds broken by
+    /// fracture; kept as a counter, O(1)).
+    pub fn broken_pairs(&self) -> u64 {
+        with!(self, m => m.world.broken_pairs)
+    }
+    /// Largest strain over the intact bonds now (-) (O(bonds)).
+    pub fn max_bond_strain(&self) -> f64 {
+        with!(self, m => m.world.max_bond_strain().0)
+    }
+    /// Separate fragments: connected components over intact bonds, all bodies (O(bonds)).
+    pub fn fragments(&self) -> usize {
+        with!(self, m => m.world.fragments())
+    }
+    /// Contact potential energy (J).
+    pub fn contact_energy(&self) -> f64 {
+        with!(self, m => m.world.contact_energy())
+    }
+    /// Pairs of particles in contact now.
+    pub fn contact_pairs(&self) -> usize {
+        with!(self, m => m.world.contact_pairs())
+    }
+    /// Contact pair-list builds so far (0: no contact search was needed).
+    pub fn contact_searches(&self) -> u64 {
+        with!(self, m => m.world.contact_searches())
+    }
+    /// Fracture-check passes so far (0 when eps_max is infinite).
+    pub fn fracture_checks(&self) -> u64 {
+        with!(self, m => m.world.fracture_checks)
+    }
+    /// Number of surface particles, Eq. (41).
+    pub fn surface_particles(&self) -> usize {
+        with!(self, m => m.world.contact.surface_ids.len())
+    }
+    /// Total linear momentum (kg m/s).
+    pub fn momentum(&self) -> [f64; 3] {
+        with!(self, m => to3(&m.world.momentum()))
+    }
+    /// Names of the bodies, in scene order.
+    pub fn body_names(&self) -> Vec<String> {
+        with!(self, m => m.world.body_names.clone())
+    }
+    /// Per-particle data for output (ParaView snapshots): body, position, displacement,
+    /// velocity, surface flag, broken bonds.
+    pub fn particle_snapshot(&self) -> ParticleSnapshot {
+        with!(self, m => {
+            let w = &m.world;
+            let n = w.len();
+            ParticleSnapshot {
+                time: w.time,
+                body: w.p.body.clone(),
+                position: w.p.x.iter().map(to3).collect(),
+                displacement: (0..n).map(|i| to3(&w.p.displacement(i))).collect(),
+                velocity: w.p.v.iter().map(to3).collect(),
+                surface: w.contact.surface.clone(),
+                broken_bonds: (0..n).map(|i| w.broken_bonds_of(i)).collect(),
+            }
+        })
     }
     pub fn state(&self) -> SimState {
         match self {

@@ -221,15 +221,28 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             for (case, dp, dt) in bench::plan(quick) {
                 eprintln!("bench: case {case}, dp {dp}, dt {dt:?}");
                 let row = bench::run_row(case, dp, dt)?;
-                eprintln!("  {} steps, {:.2} s, error {:+.2}%", row.steps, row.wall_s, 100.0 * row.error);
+                eprintln!(
+                    "  {} steps, {:.2} s, error {:+.2}%",
+                    row.steps,
+                    row.wall_s,
+                    100.0 * row.error
+                );
                 rows.push(row);
             }
             let single = bench::single_thread_throughput().ok();
-            let stability: Vec<(f64, String)> = if quick { vec![] } else { [0.8, 1.0, 1.25, 2.0].iter().map(|&f| (f, bench::stability_probe(f))).collect() };
+            let stability: Vec<(f64, String)> = if quick {
+                vec![]
+            } else {
+                [0.8, 1.0, 1.25, 2.0]
+                    .iter()
+                    .map(|&f| (f, bench::stability_probe(f)))
+                    .collect()
+            };
             let md = bench::markdown(&rows, single, &stability, rayon::current_num_threads());
             println!("{md}");
             if let Some(path) = out {
-                std::fs::write(&path, md).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                std::fs::write(&path, md)
+                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
             }
             Ok(ExitCode::SUCCESS)
         }

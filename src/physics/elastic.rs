@@ -23,6 +23,17 @@ pub struct ElasticOperator<const D: usize> {
     pub lame: Vec<(f64, f64)>,
     /// Corrected model: inverse shape tensor K_i^-1 with K_i = sum_j w0/|r0|^2 r0 r0^T.
     pub k_inv: Vec<Mat<D>>,
+    /// Corrected model: projector K_i^+ K_i on the span of the intact bonds of particle i; exactly
+    /// the identity for a full neighbourhood. The Green strain is measured in this span only,
+    /// (F^T F - P) / 2, so a particle left with bonds along one line or plane after fracture
+    /// (or none) feels no spurious stress from the missing directions.
+    pub span: Vec<Mat<D>>,
+    /// Corrected model: volume carried by the stress of particle i (m^d): l0^d, scaled by
+    /// n_i / n_i(reference) once particle i has lost bonds, Eq. (42). A particle hanging on a
+    /// few bonds then carries a share of its stress in proportion to what it still holds,
+    /// instead of concentrating its whole volume's stiffness on them (which would make it
+    /// far stiffer than the stable step allows).
+    pub vol: Vec<f64>,
 }
 
 /// Scratch arrays of the two passes.
@@ -56,11 +67,45 @@ where
             stabilisation,
             lame: materials.iter().map(|m| (m.mu(), m.lambda())).collect(),
             k_inv: Vec::new(),
+            span: Vec::new(),
+            vol: vec![l0.powi(D as i32); n_particles],
         };
-        op.k_inv = (0..n_particles)
-            .map(|i| op.shape_inverse(bonds, i))
-            .collect();
+        (op.k_inv, op.span) = (0..n_particles)
+            .map(|i| op.shape_inverse_span(bonds, i))
+            .unzip();
         op
+    }
+
+    /// K_i^-1 (pseudo-inverse when degenerate) and the projector on the span of the intact
+    /// bonds (exactly the identity when the neighbourhood has full rank).
+    pub fn shape_inverse_span(&self, bonds: &Bonds<D>, i: usize) -> (Mat<D>, Mat<D>) {
+        let mut k = Mat::<D>::zeros();
+        for b in bonds.of(i) {
+            let r0 = bonds.r0[b];
+            k += r0 * r0.transpose() * (bonds.w0[b] / r0.norm_squared());
+        }
+        let k_inv = <Space as Dim<D>>::sym_pinv(&k);
+        let p = k_inv * k;
+        let span = if (p - Mat::<D>::identity()).amax() < 1e-8 {
+            Mat::<D>::identity()
+        } else {
+            (p + p.transpose()) * 0.5
+        };
+        (k_inv, span)
+    }
+
+    /// Refreshes the operator of particle i after some of its bonds broke, Eq. (42): K_i^-1,
+    /// the span projector and the stress volume l0^d n_i / n_i(reference).
+    pub fn refresh_particle(&mut self, bonds: &Bonds<D>, i: usize, n_ref: f64) {
+        let (k_inv, span) = self.shape_inverse_span(bonds, i);
+        self.k_inv[i] = k_inv;
+        self.span[i] = span;
+        let n_now: f64 = bonds.of(i).map(|b| bonds.w0[b]).sum();
+        self.vol[i] = if n_ref > 0.0 && n_now < n_ref {
+            self.volume * n_now / n_ref
+        } else {
+            self.volume
+        };
     }
 
     /// K_i^-1 for the current (unbroken) bonds of particle i; pseudo-inverse when the
@@ -130,9 +175,9 @@ where
                 }
                 let f = g * self.k_inv[i];
                 let (mu, lambda) = self.lame[p.body[i] as usize];
-                let e = (f.transpose() * f - Mat::<D>::identity()) * 0.5;
+                let e = (f.transpose() * f - self.span[i]) * 0.5;
                 let stress = e * (2.0 * mu) + Mat::<D>::identity() * (lambda * e.trace());
-                *b_out = (f * stress * self.k_inv[i]) * v - f * (self.kappa(mu) * v);
+                *b_out = (f * stress * self.k_inv[i]) * self.vol[i] - f * (self.kappa(mu) * v);
                 *f_out = f;
             });
         let bm = &s.bmat;
@@ -239,9 +284,9 @@ where
             match self.model {
                 ElasticModel::Corrected => {
                     let f = s.defgrad.get(i).copied().unwrap_or_else(Mat::<D>::identity);
-                    let e = (f.transpose() * f - Mat::<D>::identity()) * 0.5;
-                    total +=
-                        v * (mu * e.component_mul(&e).sum() + 0.5 * lambda * e.trace().powi(2));
+                    let e = (f.transpose() * f - self.span[i]) * 0.5;
+                    total += self.vol[i]
+                        * (mu * e.component_mul(&e).sum() + 0.5 * lambda * e.trace().powi(2));
                     let kv = self.kappa(mu) * v;
                     for b in bonds.of(i) {
                         let r0 = bonds.r0[b];

@@ -2,8 +2,10 @@
 //! conditions, time integration. Knows nothing of scene files, FMI or output formats.
 pub mod bonds;
 pub mod boundary;
+pub mod contact;
 pub mod dim;
 pub mod elastic;
+pub mod fracture;
 pub mod grid;
 pub mod integrate;
 pub mod params;
@@ -30,5 +32,5 @@ macro_rules! par_iter_mut {
 }
 
 pub use dim::{Dim, Mat, Space, Vect};
-pub use params::{ElasticModel, Material, SolverOptions};
+pub use params::{ContactOptions, ElasticModel, Material, SolverOptions};
 pub use world::{BodyInit, SimError, World};

@@ -65,6 +65,53 @@ pub struct SolverOptions {
     pub damping: f64,
     /// Largest number of particles a scene may create (memory guard).
     pub max_particles: usize,
+    /// Critical bond strain eps_max of Eq. (42) (-): a bond whose strain
+    /// (|r_ij| - |r0_ij|) / |r0_ij| exceeds it breaks for good. None: no fracture (and no checks).
+    pub fracture_strain: Option<f64>,
+    /// Contact between bodies and across broken bonds (section 2.5).
+    pub contact: ContactOptions,
+}
+
+/// Contact options (section 2.5). See docs/contact-fracture.md for the force law.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ContactOptions {
+    /// Contact between bodies at all. Off: bodies pass through each other (the overlap check
+    /// is off as well).
+    pub enabled: bool,
+    /// Contact detection between fractured surfaces: particles of one body whose bond has broken
+    /// (or that never had one) repel like particles of different bodies. Off: they pass through
+    /// each other until they overlap (the paper's run "without contact detection").
+    pub fractured_surfaces: bool,
+    /// n_c of Eq. (41): particle i is a surface particle when n_i < n_max - n_c (-).
+    pub surface_threshold: f64,
+    /// Two particles not joined by an intact bond that come closer than this fraction of l0
+    /// stop the run with an overlap error (-).
+    pub overlap_fraction: f64,
+    /// Multiplier of the contact stiffness k_c = 2 d 2 mu l0^d / l0^2 derived from Eqs. (27),
+    /// (30) with re = l0 (-).
+    pub stiffness: f64,
+    /// Verlet skin of the contact pair list as a fraction of l0: the list holds the pairs within
+    /// (1 + skin) l0 and is rebuilt when a surface particle has moved more than skin l0 / 2 (-).
+    pub skin: f64,
+    /// Effective contact partners per particle assumed by the stable-step bound (-): 2 covers
+    /// a lattice face pressed on a lattice face, aligned (one partner) or offset by half a
+    /// spacing (four partners at an angle, whose stiffness adds up to at most 2 k_c).
+    pub max_partners: f64,
+}
+
+impl Default for ContactOptions {
+    fn default() -> Self {
+        ContactOptions {
+            enabled: true,
+            fractured_surfaces: true,
+            surface_threshold: 0.5,
+            overlap_fraction: 0.5,
+            stiffness: 1.0,
+            skin: 0.5,
+            max_partners: 2.0,
+        }
+    }
 }
 
 impl Default for SolverOptions {
@@ -77,6 +124,8 @@ impl Default for SolverOptions {
             safety: 0.8,
             damping: 0.0,
             max_particles: 5_000_000,
+            fracture_strain: None,
+            contact: ContactOptions::default(),
         }
     }
 }

@@ -3,6 +3,7 @@
 //! the new state, so reactions and energies always describe the current time).
 use super::bonds::{lattice_number_density, Bonds};
 use super::boundary::{BoundaryGroup, GravityLaw, GroupMotion, LoadRegion};
+use super::contact::{Contact, Overlap};
 use super::dim::{Dim, Space, Vect};
 use super::elastic::{ElasticOperator, ElasticScratch};
 use super::integrate::{critical_step, symplectic_euler, StepInputs};
@@ -19,6 +20,18 @@ pub enum SimError {
         step: u64,
         particle: usize,
         body: String,
+    },
+    #[error("particles overlap at t = {time:.6e} s (step {step}): particle {} of body '{}' and particle {} of body '{}', not joined by an intact bond, are {distance:.4e} m apart, below the overlap limit {limit:.4e} m (contact.overlap_fraction x l0){}", particles[0], bodies[0], particles[1], bodies[1], if bodies[0] == bodies[1] { "; they are parts of one body separated by fracture" } else { "" })]
+    Overlap {
+        time: f64,
+        step: u64,
+        /// Names of the bodies of the two particles.
+        bodies: [String; 2],
+        particles: [usize; 2],
+        /// Their distance (m).
+        distance: f64,
+        /// The overlap limit overlap_fraction x l0 (m).
+        limit: f64,
     },
     #[error("invalid input: {0}")]
     Invalid(String),
@@ -81,7 +94,15 @@ where
     pub gravity: GravityLaw<D>,
     pub time: f64,
     pub steps: u64,
+    /// Surface particles and contact (section 2.5).
+    pub contact: Contact<D>,
+    /// Fracture-check passes so far (0 when eps_max is infinite).
+    pub fracture_checks: u64,
+    /// Bond pairs broken so far, Eq. (42).
+    pub broken_pairs: u64,
     omega_max: f64,
+    omega_elastic: f64,
+    frac_flag: Vec<u8>,
     scratch: ElasticScratch<D>,
     force: Vec<Vect<D>>,
     torque: Vec<<Space as Dim<D>>::Ang>,
@@ -193,6 +214,15 @@ where
                 force: Vect::<D>::zeros(),
             });
         }
+        let contact = Contact::new(
+            options.contact.clone(),
+            l0,
+            n0,
+            &materials.iter().map(|m| m.mu()).collect::<Vec<_>>(),
+            &p.body,
+            &bonds,
+            options.fracture_strain.is_some(),
+        );
         let mut world = World {
             options,
             l0,
@@ -206,7 +236,12 @@ where
             gravity,
             time: 0.0,
             steps: 0,
+            contact,
+            fracture_checks: 0,
+            broken_pairs: 0,
             omega_max: 0.0,
+            omega_elastic: 0.0,
+            frac_flag: Vec::new(),
             scratch: ElasticScratch::default(),
             force: vec![Vect::<D>::zeros(); n],
             torque: vec![<Space as Dim<D>>::ang_zero(); n],
@@ -214,8 +249,23 @@ where
             load_of,
             bad: vec![0; n],
         };
-        world.omega_max = world.measure_omega_max(80);
-        world.update_forces();
+        world.omega_elastic = world.measure_omega_max(80);
+        // Contact adds stiffness that the reference state does not show: its bound is added to
+        // the measured omega^2 (Weyl: lambda_max(A + B) <= lambda_max(A) + lambda_max(B)).
+        let c2 = if world.contact.active
+            && (world.body_names.len() >= 2 || world.options.contact.fractured_surfaces)
+        {
+            world.contact.omega2_bound(&world.p.mass)
+        } else {
+            0.0
+        };
+        world.omega_max = (world.omega_elastic.powi(2) + c2).sqrt();
+        if let Some(o) = world.update_forces() {
+            return Err(SimError::Invalid(format!(
+                "bodies overlap in the initial state: {}",
+                world.overlap_error(o)
+            )));
+        }
         Ok(world)
     }
 
@@ -227,9 +277,28 @@ where
         self.p.is_empty()
     }
 
-    /// Largest angular frequency of the linearised particle model (rad/s).
+    /// Largest angular frequency of the linearised particle model (rad/s), contact included.
     pub fn omega_max(&self) -> f64 {
         self.omega_max
+    }
+
+    /// Largest angular frequency of the elastic model alone, measured by power iteration (rad/s).
+    pub fn omega_elastic(&self) -> f64 {
+        self.omega_elastic
+    }
+
+    fn overlap_error(&self, o: Overlap) -> SimError {
+        SimError::Overlap {
+            time: self.time,
+            step: self.steps,
+            bodies: [
+                self.body_names[self.p.body[o.i] as usize].clone(),
+                self.body_names[self.p.body[o.j] as usize].clone(),
+            ],
+            particles: [o.i, o.j],
+            distance: o.distance,
+            limit: self.options.contact.overlap_fraction * self.l0,
+        }
     }
 
     /// Stability limit of symplectic Euler for this model, 2 / omega_max (s).
@@ -244,8 +313,9 @@ where
             .unwrap_or(self.options.safety * self.critical_dt())
     }
 
-    /// Evaluates the internal forces of the current state and the reactions of the groups.
-    fn update_forces(&mut self) {
+    /// Evaluates the internal and contact forces of the current state and the reactions of the
+    /// groups. Returns the first overlap found (contact forces are then incomplete).
+    fn update_forces(&mut self) -> Option<Overlap> {
         self.op.forces(
             &self.p,
             &self.bonds,
@@ -253,6 +323,14 @@ where
             &mut self.force,
             &mut self.torque,
         );
+        let mut overlap = None;
+        if self.contact.active {
+            self.contact
+                .update_list(&self.p.x, &self.p.body, &self.bonds);
+            overlap = self
+                .contact
+                .add_forces(&self.p.x, &self.p.body, &mut self.force);
+        }
         for g in &mut self.groups {
             let mut sum = Vect::<D>::zeros();
             for &i in &g.members {
@@ -265,6 +343,27 @@ where
             }
             g.reaction = sum;
         }
+        overlap
+    }
+
+    /// Eq. (42): breaks the bonds strained beyond eps_max and updates what depends on them
+    /// (shape tensors, surface flags, pair list). Nothing at all when eps_max is infinite.
+    fn fracture(&mut self) {
+        let Some(eps) = self.options.fracture_strain else {
+            return;
+        };
+        self.fracture_checks += 1;
+        let (touched, pairs) =
+            super::fracture::break_bonds(&self.p.x, &mut self.bonds, eps, &mut self.frac_flag);
+        if touched.is_empty() {
+            return;
+        }
+        self.broken_pairs += pairs;
+        for &i in &touched {
+            self.op.refresh_particle(&self.bonds, i, self.p.n_ref[i]);
+        }
+        self.contact
+            .bonds_broken(&self.bonds, &self.p.body, &touched);
     }
 
     /// One step of length dt (s).
@@ -316,7 +415,10 @@ where
                 body: self.body_names[self.p.body[i] as usize].clone(),
             });
         }
-        self.update_forces();
+        self.fracture();
+        if let Some(o) = self.update_forces() {
+            return Err(self.overlap_error(o));
+        }
         Ok(())
     }
 
@@ -379,6 +481,75 @@ where
     /// Elastic strain energy of the current state (J).
     pub fn strain_energy(&self) -> f64 {
         self.op.strain_energy(&self.p, &self.bonds, &self.scratch)
+    }
+
+    /// Contact potential energy of the current state (J): the work the contact forces have
+    /// stored; kinetic + strain + contact energy is conserved between bond breaks (a break
+    /// releases the strain energy of the bond).
+    pub fn contact_energy(&self) -> f64 {
+        if self.contact.active {
+            self.contact.energy(&self.p.x, &self.p.body)
+        } else {
+            0.0
+        }
+    }
+
+    /// Pairs in contact now (closer than l0 and repelling), each pair once.
+    pub fn contact_pairs(&self) -> usize {
+        if self.contact.active {
+            self.contact.pairs_in_contact(&self.p.x)
+        } else {
+            0
+        }
+    }
+
+    /// Contact pair-list builds (cell-grid searches) so far; stays 0 when no search is needed
+    /// (one body and fracture off, or contact disabled).
+    pub fn contact_searches(&self) -> u64 {
+        self.contact.searches
+    }
+
+    /// Surface flag of particle i, Eq. (41) (or lost a bond, Eq. (42)).
+    pub fn is_surface(&self, i: usize) -> bool {
+        self.contact.surface[i]
+    }
+
+    /// Broken bonds of particle i.
+    pub fn broken_bonds_of(&self, i: usize) -> u32 {
+        super::fracture::broken_of(&self.bonds, i)
+    }
+
+    /// Number of separate fragments: connected components over the intact bonds (computed on
+    /// demand, O(bonds)). Bodies that never broke count one each.
+    pub fn fragments(&self) -> usize {
+        super::fracture::fragments(&self.bonds, self.len())
+    }
+
+    /// Largest strain over the intact bonds now (-), and a particle that has it (O(bonds)).
+    pub fn max_bond_strain(&self) -> (f64, usize) {
+        super::fracture::max_bond_strain(&self.p.x, &self.bonds)
+    }
+
+    /// Sizes of the fragments as (body, particles), in order of their lowest particle index.
+    pub fn fragment_sizes(&self) -> Vec<(u32, usize)> {
+        let root = super::fracture::components(&self.bonds, self.len());
+        let mut count = vec![0usize; self.len()];
+        for &r in &root {
+            count[r as usize] += 1;
+        }
+        (0..self.len())
+            .filter(|&i| root[i] == i as u32)
+            .map(|i| (self.p.body[i], count[i]))
+            .collect()
+    }
+
+    /// Pairs closer than l0 now: (different bodies, one body across a broken bond).
+    pub fn contact_pairs_by_kind(&self) -> (usize, usize) {
+        if self.contact.active {
+            self.contact.pairs_by_kind(&self.p.x, &self.p.body)
+        } else {
+            (0, 0)
+        }
     }
 
     /// Total linear momentum (kg m/s).
@@ -461,7 +632,19 @@ where
         self.p.v.clone_from(&s.v);
         self.p.q.clone_from(&s.q);
         self.p.w.clone_from(&s.w);
+        let changed: Vec<usize> = (0..n)
+            .filter(|&i| {
+                self.bonds
+                    .of(i)
+                    .any(|k| self.bonds.w0[k].to_bits() != s.w0[k].to_bits())
+            })
+            .collect();
         self.bonds.w0.clone_from(&s.w0);
+        for &i in &changed {
+            self.op.refresh_particle(&self.bonds, i, self.p.n_ref[i]);
+        }
+        self.broken_pairs = self.bonds.w0.iter().filter(|&&w| w == 0.0).count() as u64 / 2;
+        self.contact.refresh_all(&self.bonds, &self.p.body);
         for (g, m) in self.groups.iter_mut().zip(&s.motions) {
             g.motion = *m;
         }
@@ -469,7 +652,9 @@ where
             l.force = *f;
         }
         self.gravity = s.gravity;
-        self.update_forces();
+        if let Some(o) = self.update_forces() {
+            return Err(self.overlap_error(o));
+        }
         Ok(())
     }
 

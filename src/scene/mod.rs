@@ -232,6 +232,31 @@ impl Scene {
                 format!("must be >= 0, got {}", o.damping),
             ));
         }
+        if let Some(e) = o.fracture_strain {
+            positive("solver.fracture_strain", e)?;
+        }
+        let c = &o.contact;
+        if !(c.surface_threshold.is_finite() && c.surface_threshold > 0.0) {
+            return Err(err(
+                "solver.contact.surface_threshold",
+                format!("must be > 0, got {}", c.surface_threshold),
+            ));
+        }
+        if !(c.overlap_fraction.is_finite() && c.overlap_fraction > 0.0 && c.overlap_fraction < 1.0)
+        {
+            return Err(err(
+                "solver.contact.overlap_fraction",
+                format!("must be in (0, 1), got {}", c.overlap_fraction),
+            ));
+        }
+        positive("solver.contact.stiffness", c.stiffness)?;
+        positive("solver.contact.skin", c.skin)?;
+        if !(c.max_partners.is_finite() && c.max_partners >= 1.0) {
+            return Err(err(
+                "solver.contact.max_partners",
+                format!("must be >= 1, got {}", c.max_partners),
+            ));
+        }
         positive("end_time", self.end_time)?;
         positive("output_interval", self.output_interval)?;
         if !self.gravity.vector.is_empty() {

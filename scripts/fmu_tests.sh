@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# FMU tests end to end: builds the release cdylib, packs scenes/*.json and tests/data/*.json into
+# target/fmu/*.fmu, checks modelDescription/<scene>.xml against the generated XML, compiles and
+# runs the example C host on a packed FMU, and runs the fmpy tests (tests/python) in .venv.
+# Exits non-zero on any failure; the last line is pytest's summary.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+out="$root/target/fmu"
+lib="$root/target/release/libmps_solid.so"
+
+echo "== building the release library"
+cargo build --release --lib --quiet
+
+echo "== python environment"
+scripts/setup_python.sh
+
+echo "== packing FMUs into $out"
+rm -rf "$out" && mkdir -p "$out"
+shopt -s nullglob
+scenes=(scenes/*.json)
+if (( ${#scenes[@]} == 0 )); then
+    echo "no scenes/*.json" >&2
+    exit 1
+fi
+# The paper's scenes: packed, and modelDescription/<name>.xml must be up to date.
+cargo run --release --quiet --example pack_scenes -- --lib "$lib" --out "$out" \
+    --check-xml modelDescription "${scenes[@]}"
+# The small test scenes of the FMI layer.
+cargo run --release --quiet --example pack_scenes -- --lib "$lib" --out "$out" tests/data/*.json
+
+echo "== example C host"
+fmu="$out/$(basename "${scenes[-1]}" .json).fmu"
+log="$root/target/c_host/run.log"
+mkdir -p "$root/target/c_host"
+make -s -C examples/c_host run FMU="$fmu" STOP=0.02 STEP=0.001 | tee "$log"
+grep -q "^last successful time 0.02" "$log" || { echo "C host did not reach t = 0.02" >&2; exit 1; }
+
+echo "== fmpy tests"
+MPS_FMU_DIR="$out" .venv/bin/python -m pytest tests/python -q -p no:cacheprovider

@@ -1,0 +1,387 @@
+//! Surface particles, Eq. (41), and contact between them (section 2.5): particles of different
+//! bodies, and particles of one body with no intact bond between them once fracture is on, repel
+//! when closer than l0. The force law is the paper's normal spring, Eqs. (27) and (30), with the
+//! range of influence re = l0 and the number density n_i of Eq. (30) taken over the contact
+//! neighbourhood (derivation in docs/contact-fracture.md): for one partner the weight cancels and
+//!
+//!   f_i = -k_c (l0 - r) r_hat_ij,   k_c = 2 d (2 mu_ij) l0^d / l0^2,   r < l0,
+//!
+//! with r_hat_ij = (x_j - x_i) / r and mu_ij the series (harmonic) mean of the two bodies' shear
+//! moduli. Several partners add (symmetric pair forces: momentum is conserved to round-off). The
+//! law is conservative, U(r) = k_c (l0 - r)^2 / 2, frictionless (Eq. (31) has no reference
+//! vector across a contact) and has no pressure part (no volumetric strain across a contact).
+//!
+//! Contact search: a Verlet list over surface particles only, built with a cell grid of side
+//! (1 + skin) l0 and rebuilt when a surface particle has moved more than skin l0 / 2 since the
+//! last build, or when the set of surface particles or bonds changed (fracture). Forces are
+//! gathered per particle over its own sorted list, so results do not depend on the threads.
+use super::bonds::Bonds;
+use super::dim::Vect;
+use super::grid::CellGrid;
+#[allow(unused_imports)]
+use super::par::*;
+use super::params::ContactOptions;
+use crate::par_iter_mut;
+
+/// Magnitude of the repulsive contact force at distance r (N) for the pair stiffness k_c.
+#[inline(always)]
+pub fn force_magnitude(kc: f64, l0: f64, r: f64) -> f64 {
+    if r < l0 {
+        kc * (l0 - r)
+    } else {
+        0.0
+    }
+}
+
+/// Contact potential at distance r (J): the integral of `force_magnitude` from r to l0.
+pub fn potential(kc: f64, l0: f64, r: f64) -> f64 {
+    if r < l0 {
+        0.5 * kc * (l0 - r) * (l0 - r)
+    } else {
+        0.0
+    }
+}
+
+/// Largest eigenvalue of the pair stiffness (Hessian of U): the radial k_c (the transverse
+/// part, -|f| / r, is negative) (N/m).
+pub fn max_tangent_stiffness(kc: f64) -> f64 {
+    kc
+}
+
+/// A pair closer than the overlap distance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Overlap {
+    pub i: usize,
+    pub j: usize,
+    pub distance: f64,
+}
+
+/// Contact state: surface flags, number densities and the Verlet pair list.
+#[derive(Clone, Debug)]
+pub struct Contact<const D: usize> {
+    pub opts: ContactOptions,
+    /// Whether any contact search is needed at all: contact enabled and either two or more
+    /// bodies or fracture on.
+    pub active: bool,
+    /// Whether pairs of the same body without an intact bond are candidates (fracture on).
+    pub same_body: bool,
+    /// Pair stiffness k_c per body pair (row-major, n_bodies^2) (N/m).
+    pub k0: Vec<f64>,
+    pub n_bodies: usize,
+    pub l0: f64,
+    /// Current number density n_i over the intact bonds, Eq. (12) (-).
+    pub number_density: Vec<f64>,
+    /// n_max of Eq. (41) per body: the largest of the interior lattice value n0 and the
+    /// body's largest reference number density (-).
+    pub n_max: Vec<f64>,
+    /// Surface flag, Eq. (41), or lost a bond, Eq. (42).
+    pub surface: Vec<bool>,
+    /// Indices of the surface particles (ascending).
+    pub surface_ids: Vec<u32>,
+    /// Positions of the surface particles at the last build.
+    x_build: Vec<Vect<D>>,
+    /// Pair list per surface particle (CSR over `surface_ids`): neighbour and whether the pair
+    /// repels (false: checked for overlap only).
+    start: Vec<u32>,
+    nbr: Vec<u32>,
+    repel: Vec<bool>,
+    /// Contact force per surface particle (scratch).
+    f_s: Vec<Vect<D>>,
+    /// First overlap found per surface particle (scratch).
+    hit: Vec<Option<(u32, f64)>>,
+    pub needs_rebuild: bool,
+    /// Pair-list builds so far.
+    pub searches: u64,
+}
+
+impl<const D: usize> Contact<D> {
+    /// Sets up contact for the particles' bodies; `mu` per body, `n0` of the elastic operator.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        opts: ContactOptions,
+        l0: f64,
+        n0: f64,
+        mu: &[f64],
+        body: &[u32],
+        bonds: &Bonds<D>,
+        fracture: bool,
+    ) -> Self {
+        let nb = mu.len();
+        let d = D as f64;
+        let mut k0 = vec![0.0; nb * nb];
+        for a in 0..nb {
+            for b in 0..nb {
+                let mu_ab = 2.0 * mu[a] * mu[b] / (mu[a] + mu[b]);
+                // Eqs. (27), (30) times the particle volume l0^d, with |r0| = l0 and one partner
+                // (see module doc).
+                k0[a * nb + b] =
+                    opts.stiffness * 2.0 * d * 2.0 * mu_ab * l0.powi(D as i32) / (l0 * l0);
+            }
+        }
+        let n = body.len();
+        let number_density: Vec<f64> = (0..n)
+            .map(|i| bonds.of(i).map(|k| bonds.w0[k]).sum())
+            .collect();
+        // n_max of Eq. (41): the interior value n0 of the lattice (or more, for denser bodies),
+        // so the faces of a body too thin to have interior particles are still surface.
+        let mut n_max = vec![n0; nb];
+        for i in 0..n {
+            let b = body[i] as usize;
+            n_max[b] = n_max[b].max(number_density[i]);
+        }
+        let active = opts.enabled && (nb >= 2 || fracture);
+        let mut c = Contact {
+            active,
+            same_body: fracture,
+            k0,
+            n_bodies: nb,
+            l0,
+            number_density,
+            n_max,
+            surface: vec![false; n],
+            surface_ids: Vec::new(),
+            x_build: Vec::new(),
+            start: vec![0],
+            nbr: Vec::new(),
+            repel: Vec::new(),
+            f_s: Vec::new(),
+            hit: Vec::new(),
+            needs_rebuild: true,
+            searches: 0,
+            opts,
+        };
+        for i in 0..n {
+            c.surface[i] = c.is_surface(bonds, body, i);
+        }
+        c.collect_surface();
+        c
+    }
+
+    /// Eq. (41): n_i < n_max - n_c; or particle i lost a bond (Eq. (42) makes it a surface
+    /// particle even when the lost weight is below n_c).
+    fn is_surface(&self, bonds: &Bonds<D>, body: &[u32], i: usize) -> bool {
+        self.number_density[i] < self.n_max[body[i] as usize] - self.opts.surface_threshold
+            || bonds.of(i).any(|k| bonds.w0[k] == 0.0)
+    }
+
+    fn collect_surface(&mut self) {
+        self.surface_ids = (0..self.surface.len() as u32)
+            .filter(|&i| self.surface[i as usize])
+            .collect();
+        self.needs_rebuild = true;
+    }
+
+    /// Updates number densities and surface flags of the particles that lost bonds.
+    pub fn bonds_broken(&mut self, bonds: &Bonds<D>, body: &[u32], touched: &[usize]) {
+        for &i in touched {
+            self.number_density[i] = bonds.of(i).map(|k| bonds.w0[k]).sum();
+            self.surface[i] = self.is_surface(bonds, body, i);
+        }
+        self.collect_surface();
+    }
+
+    /// Recomputes everything derived from the bonds (after a state restore).
+    pub fn refresh_all(&mut self, bonds: &Bonds<D>, body: &[u32]) {
+        for i in 0..self.surface.len() {
+            self.number_density[i] = bonds.of(i).map(|k| bonds.w0[k]).sum();
+            self.surface[i] = self.is_surface(bonds, body, i);
+        }
+        self.collect_surface();
+    }
+
+    /// Rebuilds the pair list if motion (or a change of the surface) requires it.
+    pub fn update_list(&mut self, x: &[Vect<D>], body: &[u32], bonds: &Bonds<D>) {
+        if !self.needs_rebuild {
+            let lim = 0.5 * self.opts.skin * self.l0;
+            let lim2 = lim * lim;
+            let moved = self
+                .surface_ids
+                .iter()
+                .zip(&self.x_build)
+                .any(|(&i, xb)| (x[i as usize] - xb).norm_squared() > lim2);
+            if !moved {
+                return;
+            }
+        }
+        self.rebuild(x, body, bonds);
+    }
+
+    fn rebuild(&mut self, x: &[Vect<D>], body: &[u32], bonds: &Bonds<D>) {
+        self.searches += 1;
+        self.needs_rebuild = false;
+        let reach = (1.0 + self.opts.skin) * self.l0;
+        let grid = CellGrid::build(x, Some(&self.surface_ids), reach);
+        let ids = &self.surface_ids;
+        let same_body = self.same_body;
+        let repel_same = self.opts.fractured_surfaces;
+        let mut lists: Vec<Vec<(u32, bool)>> = vec![Vec::new(); ids.len()];
+        par_iter_mut!(lists).enumerate().for_each(|(s, out)| {
+            let i = ids[s] as usize;
+            grid.for_each_near(x, &x[i], reach, |j| {
+                let ju = j as usize;
+                if ju == i {
+                    return;
+                }
+                if body[ju] != body[i] {
+                    out.push((j, true));
+                } else if same_body && !intact_bond(bonds, i, j) {
+                    out.push((j, repel_same));
+                }
+            });
+            out.sort_unstable_by_key(|e| e.0);
+        });
+        self.start.clear();
+        self.start.push(0);
+        self.nbr.clear();
+        self.repel.clear();
+        for l in &lists {
+            for &(j, r) in l {
+                self.nbr.push(j);
+                self.repel.push(r);
+            }
+            self.start.push(self.nbr.len() as u32);
+        }
+        self.x_build = ids.iter().map(|&i| x[i as usize]).collect();
+    }
+
+    /// Adds the contact forces to `force` and checks for overlaps (pairs closer than
+    /// overlap_fraction l0). Returns the overlap of the lowest particle index, if any; the forces
+    /// are then incomplete.
+    pub fn add_forces(
+        &mut self,
+        x: &[Vect<D>],
+        body: &[u32],
+        force: &mut [Vect<D>],
+    ) -> Option<Overlap> {
+        let ns = self.surface_ids.len();
+        self.f_s.resize(ns, Vect::<D>::zeros());
+        self.hit.resize(ns, None);
+        let l0 = self.l0;
+        let l02 = l0 * l0;
+        let amin = self.opts.overlap_fraction * l0;
+        let nb = self.n_bodies;
+        let (ids, start, nbr, repel, k0) = (
+            &self.surface_ids,
+            &self.start,
+            &self.nbr,
+            &self.repel,
+            &self.k0,
+        );
+        par_iter_mut!(self.f_s)
+            .zip(par_iter_mut!(self.hit))
+            .enumerate()
+            .for_each(|(s, (f_out, h_out))| {
+                let i = ids[s] as usize;
+                let xi = x[i];
+                let bi = body[i] as usize;
+                let mut acc = Vect::<D>::zeros();
+                let mut hit = None;
+                for e in start[s] as usize..start[s + 1] as usize {
+                    let j = nbr[e] as usize;
+                    let r = x[j] - xi;
+                    let r2 = r.norm_squared();
+                    if r2 >= l02 {
+                        continue;
+                    }
+                    let d = r2.sqrt();
+                    if d < amin {
+                        if hit.is_none() {
+                            hit = Some((j as u32, d));
+                        }
+                        continue;
+                    }
+                    if repel[e] {
+                        let k = k0[bi * nb + body[j] as usize];
+                        // f_i = -k_c (l0 - r) r_ij / r
+                        acc -= r * (force_magnitude(k, l0, d) / d);
+                    }
+                }
+                *f_out = acc;
+                *h_out = hit;
+            });
+        for (s, &i) in self.surface_ids.iter().enumerate() {
+            force[i as usize] += self.f_s[s];
+        }
+        self.hit.iter().enumerate().find_map(|(s, h)| {
+            h.map(|(j, d)| Overlap {
+                i: self.surface_ids[s] as usize,
+                j: j as usize,
+                distance: d,
+            })
+        })
+    }
+
+    /// Contact potential energy of the current state (J), each pair once.
+    pub fn energy(&self, x: &[Vect<D>], body: &[u32]) -> f64 {
+        let mut total = 0.0;
+        for (s, &i) in self.surface_ids.iter().enumerate() {
+            let i = i as usize;
+            for e in self.start[s] as usize..self.start[s + 1] as usize {
+                let j = self.nbr[e] as usize;
+                if j <= i || !self.repel[e] {
+                    continue;
+                }
+                let k = self.k0[body[i] as usize * self.n_bodies + body[j] as usize];
+                total += potential(k, self.l0, (x[j] - x[i]).norm());
+            }
+        }
+        total
+    }
+
+    /// Pairs in contact (closer than l0, repelling) now, each pair once.
+    pub fn pairs_in_contact(&self, x: &[Vect<D>]) -> usize {
+        let mut count = 0;
+        for (s, &i) in self.surface_ids.iter().enumerate() {
+            let i = i as usize;
+            for e in self.start[s] as usize..self.start[s + 1] as usize {
+                let j = self.nbr[e] as usize;
+                if j > i && self.repel[e] && (x[j] - x[i]).norm_squared() < self.l0 * self.l0 {
+                    count += 1;
+                }
+            }
+        }
+        count
+    }
+
+    /// Pairs closer than l0 now, each pair once: (different bodies, same body across a broken
+    /// bond), the latter whether they repel or not.
+    pub fn pairs_by_kind(&self, x: &[Vect<D>], body: &[u32]) -> (usize, usize) {
+        let (mut inter, mut same) = (0, 0);
+        for (s, &i) in self.surface_ids.iter().enumerate() {
+            let i = i as usize;
+            for e in self.start[s] as usize..self.start[s + 1] as usize {
+                let j = self.nbr[e] as usize;
+                if j > i && (x[j] - x[i]).norm_squared() < self.l0 * self.l0 {
+                    if body[i] == body[j] {
+                        same += 1;
+                    } else {
+                        inter += 1;
+                    }
+                }
+            }
+        }
+        (inter, same)
+    }
+
+    /// Upper bound of omega^2 that contact adds to the particle model (rad^2/s^2), by
+    /// Gershgorin on M^-1/2 K_c M^-1/2: each particle has at most `max_partners` partners of
+    /// stiffness k_c, so omega_c^2 <= max_partners k_c (1/m_i + 1/sqrt(m_i m_j))
+    /// <= 2 max_partners k_c / m_min.
+    pub fn omega2_bound(&self, mass: &[f64]) -> f64 {
+        if !self.active {
+            return 0.0;
+        }
+        let kmax = self.k0.iter().fold(0.0f64, |a, &k| a.max(k));
+        let m_min = mass.iter().fold(f64::INFINITY, |a, &m| a.min(m));
+        2.0 * self.opts.max_partners * max_tangent_stiffness(kmax) / m_min
+    }
+}
+
+/// Whether particles i and j are joined by an intact bond (the bonds of i are sorted by j).
+fn intact_bond<const D: usize>(bonds: &Bonds<D>, i: usize, j: u32) -> bool {
+    let r = bonds.of(i);
+    match bonds.nbr[r.clone()].binary_search(&j) {
+        Ok(k) => bonds.w0[r.start + k] != 0.0,
+        Err(_) => false,
+    }
+}

@@ -1,0 +1,51 @@
+//! Case 3 (section 3.3) at the paper's dp = 0.05 m, first 0.15 s: the cube touches the block at
+//! the paper's 0.07 s (gap 0.35 m at 5 m/s), contact then decelerates it, nothing overlaps; both
+//! scene variants are valid scene files (serde round trip) and differ only in the contact option.
+use mps_solid::case3::{case3_report, case3_scene, EPS_MAX_USED};
+use mps_solid::physics::ElasticModel;
+use mps_solid::Scene;
+
+#[test]
+fn cube_touches_the_block_near_the_papers_time() {
+    let sc = case3_scene(0.05, true, ElasticModel::Corrected);
+    assert_eq!(sc.solver.fracture_strain, Some(EPS_MAX_USED));
+    let r = case3_report(&sc, 0.15, 0.01, 0.0025, |_| {}).unwrap();
+    assert!(r.failure.is_none(), "{:?}", r.failure);
+    let t = r.first_contact.expect("no contact");
+    assert!((0.0675..=0.075).contains(&t), "first contact at {t} s");
+    // The cube has been slowed: kinetic energy went into strain energy of both bodies.
+    let (first, last) = (&r.history[0], r.history.last().unwrap());
+    assert!((first.kinetic - 0.5 * 125.0 * 25.0).abs() < 1e-9);
+    assert!(last.kinetic < 0.8 * first.kinetic, "{}", last.kinetic);
+    assert!(last.strain > 0.1 * first.kinetic, "{}", last.strain);
+    // Steps: the automatic step is ~1e-4 s (the paper's is 1e-6 s).
+    assert!(r.dt > 1e-4 && r.dt < 5e-4, "dt {}", r.dt);
+}
+
+#[test]
+fn both_variants_are_valid_scene_files() {
+    let on = case3_scene(0.05, true, ElasticModel::Corrected);
+    let off = case3_scene(0.05, false, ElasticModel::Corrected);
+    assert!(on.solver.contact.fractured_surfaces && !off.solver.contact.fractured_surfaces);
+    for sc in [on, off] {
+        let back = Scene::from_json(&sc.to_json()).unwrap();
+        assert_eq!(back, sc);
+    }
+    // Unknown contact fields are refused with the field named.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&case3_scene(0.05, true, ElasticModel::Corrected).to_json()).unwrap();
+    v["solver"]["contact"]["overlap_fraction"] = serde_json::json!(1.5);
+    let e = Scene::from_json(&v.to_string()).unwrap_err().to_string();
+    assert!(e.contains("solver.contact.overlap_fraction"), "{e}");
+    v["solver"]["contact"]["bogus"] = serde_json::json!(1);
+    assert!(Scene::from_json(&v.to_string()).is_err());
+    // A scene without the new fields is still valid (serde defaults): no fracture, contact on.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&case3_scene(0.05, true, ElasticModel::Corrected).to_json()).unwrap();
+    let solver = v["solver"].as_object_mut().unwrap();
+    solver.remove("contact");
+    solver.remove("fracture_strain");
+    let sc = Scene::from_json(&v.to_string()).unwrap();
+    assert_eq!(sc.solver.fracture_strain, None);
+    assert!(sc.solver.contact.enabled && sc.solver.contact.fractured_surfaces);
+}

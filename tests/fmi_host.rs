@@ -1,0 +1,1230 @@
+//! Acts as a C host: loads the built cdylib (target/<profile>/libmps_solid.so) with libloading
+//! and calls the exported fmi2* functions like an FMI 2.0 master, with a variadic C logger
+//! (tests/c/logger_shim.c, compiled with the system C compiler) capturing every message.
+#![allow(non_snake_case)]
+
+use libloading::Library;
+use mps_solid::fmi::model_description::guid;
+use mps_solid::fmi::variables::VariableTable;
+use mps_solid::Scene;
+use std::ffi::{c_char, c_int, c_uint, c_void, CStr, CString};
+use std::path::{Path, PathBuf};
+use std::ptr::{null, null_mut};
+use std::sync::{Mutex, OnceLock, RwLock};
+
+const OK: c_int = 0;
+const DISCARD: c_int = 2;
+const ERROR: c_int = 3;
+const FATAL: c_int = 4;
+const CS: c_int = 1;
+
+type Comp = *mut c_void;
+type Vr = c_uint;
+
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct Callbacks {
+    logger: *const c_void,
+    allocate: *const c_void,
+    free: *const c_void,
+    step_finished: *const c_void,
+    env: *mut c_void,
+}
+
+macro_rules! api {
+    ($($name:ident : fn($($a:ty),*) $(-> $r:ty)?;)*) => {
+        #[allow(dead_code)]
+        struct Api {
+            _lib: Library,
+            $($name: unsafe extern "C" fn($($a),*) $(-> $r)?,)*
+        }
+        impl Api {
+            fn load(path: &Path) -> Api {
+                unsafe {
+                    let lib = Library::new(path).unwrap_or_else(|e| panic!("cannot load {}: {e}", path.display()));
+                    $(let $name = *lib
+                        .get::<unsafe extern "C" fn($($a),*) $(-> $r)?>(concat!(stringify!($name), "\0").as_bytes())
+                        .unwrap_or_else(|e| panic!("symbol {} missing: {e}", stringify!($name)));)*
+                    Api { _lib: lib, $($name,)* }
+                }
+            }
+        }
+    };
+}
+
+api! {
+    fmi2GetTypesPlatform: fn() -> *const c_char;
+    fmi2GetVersion: fn() -> *const c_char;
+    fmi2SetDebugLogging: fn(Comp, c_int, usize, *const *const c_char) -> c_int;
+    fmi2Instantiate: fn(*const c_char, c_int, *const c_char, *const c_char, *const Callbacks, c_int, c_int) -> Comp;
+    fmi2FreeInstance: fn(Comp);
+    fmi2SetupExperiment: fn(Comp, c_int, f64, f64, c_int, f64) -> c_int;
+    fmi2EnterInitializationMode: fn(Comp) -> c_int;
+    fmi2ExitInitializationMode: fn(Comp) -> c_int;
+    fmi2Terminate: fn(Comp) -> c_int;
+    fmi2Reset: fn(Comp) -> c_int;
+    fmi2GetReal: fn(Comp, *const Vr, usize, *mut f64) -> c_int;
+    fmi2GetInteger: fn(Comp, *const Vr, usize, *mut c_int) -> c_int;
+    fmi2GetBoolean: fn(Comp, *const Vr, usize, *mut c_int) -> c_int;
+    fmi2GetString: fn(Comp, *const Vr, usize, *mut *const c_char) -> c_int;
+    fmi2SetReal: fn(Comp, *const Vr, usize, *const f64) -> c_int;
+    fmi2SetInteger: fn(Comp, *const Vr, usize, *const c_int) -> c_int;
+    fmi2SetBoolean: fn(Comp, *const Vr, usize, *const c_int) -> c_int;
+    fmi2SetString: fn(Comp, *const Vr, usize, *const *const c_char) -> c_int;
+    fmi2GetFMUstate: fn(Comp, *mut *mut c_void) -> c_int;
+    fmi2SetFMUstate: fn(Comp, *mut c_void) -> c_int;
+    fmi2FreeFMUstate: fn(Comp, *mut *mut c_void) -> c_int;
+    fmi2SerializedFMUstateSize: fn(Comp, *mut c_void, *mut usize) -> c_int;
+    fmi2SerializeFMUstate: fn(Comp, *mut c_void, *mut c_char, usize) -> c_int;
+    fmi2DeSerializeFMUstate: fn(Comp, *const c_char, usize, *mut *mut c_void) -> c_int;
+    fmi2GetDirectionalDerivative: fn(Comp, *const Vr, usize, *const Vr, usize, *const f64, *mut f64) -> c_int;
+    fmi2SetRealInputDerivatives: fn(Comp, *const Vr, usize, *const c_int, *const f64) -> c_int;
+    fmi2GetRealOutputDerivatives: fn(Comp, *const Vr, usize, *const c_int, *mut f64) -> c_int;
+    fmi2DoStep: fn(Comp, f64, f64, c_int) -> c_int;
+    fmi2CancelStep: fn(Comp) -> c_int;
+    fmi2GetStatus: fn(Comp, c_int, *mut c_int) -> c_int;
+    fmi2GetRealStatus: fn(Comp, c_int, *mut f64) -> c_int;
+    fmi2GetIntegerStatus: fn(Comp, c_int, *mut c_int) -> c_int;
+    fmi2GetBooleanStatus: fn(Comp, c_int, *mut c_int) -> c_int;
+    fmi2GetStringStatus: fn(Comp, c_int, *mut *const c_char) -> c_int;
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The cdylib cargo built with this test: target/<profile>/deps/libmps_solid.so (cargo builds
+/// the library's cdylib for integration tests of the package but uplifts it to
+/// target/<profile>/ only in `cargo build`, so the copy there may be stale): the newer of the two.
+fn library_path() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let deps = exe.parent().unwrap();
+    let profile = if deps.ends_with("deps") {
+        deps.parent().unwrap()
+    } else {
+        deps
+    };
+    let mtime = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    [
+        profile.join("deps/libmps_solid.so"),
+        profile.join("libmps_solid.so"),
+    ]
+    .into_iter()
+    .filter(|p| p.exists())
+    .max_by_key(mtime)
+    .unwrap_or_else(|| panic!("libmps_solid.so not found next to {}", exe.display()))
+}
+
+/// Compiles the variadic logger shim once per process.
+fn shim() -> &'static Library {
+    static SHIM: OnceLock<Library> = OnceLock::new();
+    SHIM.get_or_init(|| {
+        let out = std::env::temp_dir().join(format!("mps-fmi-shim-{}.so", std::process::id()));
+        let status = std::process::Command::new("cc")
+            .args(["-shared", "-fPIC", "-O1", "-Wall", "-Werror", "-I"])
+            .arg(root().join("vendor/fmi2"))
+            .arg(root().join("tests/c/logger_shim.c"))
+            .arg("-o")
+            .arg(&out)
+            .status()
+            .expect("run cc");
+        assert!(status.success(), "compiling the logger shim failed");
+        let lib = unsafe { Library::new(&out).unwrap() };
+        unsafe {
+            let set: libloading::Symbol<unsafe extern "C" fn(*const c_void)> =
+                lib.get(b"shim_set_sink\0").unwrap();
+            set(sink as *const c_void);
+        }
+        std::fs::remove_file(&out).ok();
+        lib
+    })
+}
+
+fn logger_ptr() -> *const c_void {
+    unsafe {
+        let f: libloading::Symbol<*const c_void> = shim().get(b"shim_logger\0").unwrap();
+        *f
+    }
+}
+
+/// Messages logged to one instance: (status, category, message, instance name).
+#[derive(Default, Debug)]
+struct Log(Mutex<Vec<(c_int, String, String, String)>>);
+
+unsafe extern "C" fn sink(
+    env: *mut c_void,
+    name: *const c_char,
+    status: c_int,
+    category: *const c_char,
+    message: *const c_char,
+) {
+    let log = &*(env as *const Log);
+    let s = |p: *const c_char| {
+        if p.is_null() {
+            "<NULL>".to_string()
+        } else {
+            CStr::from_ptr(p).to_string_lossy().into_owned()
+        }
+    };
+    log.0
+        .lock()
+        .unwrap()
+        .push((status, s(category), s(message), s(name)));
+}
+
+impl Log {
+    fn last(&self) -> (c_int, String, String) {
+        let v = self.0.lock().unwrap();
+        let l = v.last().expect("a logged message");
+        (l.0, l.1.clone(), l.2.clone())
+    }
+    fn len(&self) -> usize {
+        self.0.lock().unwrap().len()
+    }
+    fn all(&self) -> String {
+        self.0
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|m| format!("{m:?}\n"))
+            .collect()
+    }
+}
+
+fn api() -> &'static Api {
+    static API: OnceLock<Api> = OnceLock::new();
+    API.get_or_init(|| Api::load(&library_path()))
+}
+
+/// Tests that count threads take this lock for writing; all others for reading.
+static PROCESS: RwLock<()> = RwLock::new(());
+
+fn shared() -> std::sync::RwLockReadGuard<'static, ()> {
+    PROCESS.read().unwrap_or_else(|e| e.into_inner())
+}
+
+/// An unpacked FMU directory (resources/scene.json) of a tests/data scene.
+struct Unpacked {
+    dir: PathBuf,
+    scene: Scene,
+}
+
+impl Unpacked {
+    fn new(scene_file: &str, tag: &str) -> Unpacked {
+        let scene = Scene::load(&root().join("tests/data").join(scene_file)).unwrap();
+        Self::from_scene(scene, tag)
+    }
+    fn from_scene(scene: Scene, tag: &str) -> Unpacked {
+        let dir = std::env::temp_dir().join(format!(
+            "mps-fmi-host-{}-{tag}-{}",
+            std::process::id(),
+            scene.name
+        ));
+        std::fs::create_dir_all(dir.join("resources")).unwrap();
+        std::fs::write(dir.join("resources/scene.json"), scene.to_json()).unwrap();
+        Unpacked { dir, scene }
+    }
+    fn uri(&self) -> String {
+        format!("file://{}/resources", self.dir.display())
+    }
+    fn guid(&self) -> String {
+        guid(&self.scene)
+    }
+    fn vr(&self, name: &str) -> Vr {
+        VariableTable::new(&self.scene)
+            .by_name(name)
+            .unwrap_or_else(|| panic!("no variable {name}"))
+            .value_reference
+    }
+}
+
+impl Drop for Unpacked {
+    fn drop(&mut self) {
+        std::fs::remove_dir_all(&self.dir).ok();
+    }
+}
+
+/// One instance with its log.
+struct Inst {
+    c: Comp,
+    log: Box<Log>,
+}
+
+unsafe impl Send for Inst {}
+
+impl Inst {
+    fn new(u: &Unpacked) -> Inst {
+        Self::with(u, &u.guid(), &u.uri(), true).expect("instantiate")
+    }
+    fn with(u: &Unpacked, guid: &str, uri: &str, logger: bool) -> Result<Inst, Box<Log>> {
+        let _ = u;
+        let log = Box::<Log>::default();
+        let cb = Callbacks {
+            logger: if logger { logger_ptr() } else { null() },
+            allocate: null(),
+            free: null(),
+            step_finished: null(),
+            env: &*log as *const Log as *mut c_void,
+        };
+        let (name, g, uri) = (cstr("inst"), cstr(guid), cstr(uri));
+        let c = unsafe {
+            (api().fmi2Instantiate)(name.as_ptr(), CS, g.as_ptr(), uri.as_ptr(), &cb, 0, 0)
+        };
+        if c.is_null() {
+            Err(log)
+        } else {
+            Ok(Inst { c, log })
+        }
+    }
+    fn init(&self, stop: Option<f64>) {
+        unsafe {
+            assert_eq!(
+                (api().fmi2SetupExperiment)(
+                    self.c,
+                    0,
+                    0.0,
+                    0.0,
+                    stop.is_some() as c_int,
+                    stop.unwrap_or(0.0)
+                ),
+                OK
+            );
+            assert_eq!(
+                (api().fmi2EnterInitializationMode)(self.c),
+                OK,
+                "{}",
+                self.log.all()
+            );
+            assert_eq!(
+                (api().fmi2ExitInitializationMode)(self.c),
+                OK,
+                "{}",
+                self.log.all()
+            );
+        }
+    }
+    fn real(&self, vr: &[Vr]) -> Vec<f64> {
+        let mut v = vec![f64::NAN; vr.len()];
+        let s = unsafe { (api().fmi2GetReal)(self.c, vr.as_ptr(), vr.len(), v.as_mut_ptr()) };
+        assert_eq!(s, OK, "{}", self.log.all());
+        v
+    }
+    fn int(&self, vr: &[Vr]) -> Vec<c_int> {
+        let mut v = vec![-1; vr.len()];
+        let s = unsafe { (api().fmi2GetInteger)(self.c, vr.as_ptr(), vr.len(), v.as_mut_ptr()) };
+        assert_eq!(s, OK, "{}", self.log.all());
+        v
+    }
+    fn set(&self, vr: &[Vr], v: &[f64]) -> c_int {
+        unsafe { (api().fmi2SetReal)(self.c, vr.as_ptr(), vr.len(), v.as_ptr()) }
+    }
+    fn step(&self, t: f64, h: f64) -> c_int {
+        unsafe { (api().fmi2DoStep)(self.c, t, h, 1) }
+    }
+    /// Asserts an error status and that the last logged message contains `needle`.
+    fn expect_err(&self, status: c_int, needle: &str) {
+        assert_eq!(
+            status,
+            ERROR,
+            "expected fmi2Error; log:\n{}",
+            self.log.all()
+        );
+        let (s, cat, msg) = self.log.last();
+        assert_eq!(s, ERROR, "{msg}");
+        assert_eq!(cat, "logStatusError");
+        assert!(msg.contains(needle), "'{msg}' does not contain '{needle}'");
+    }
+}
+
+impl Drop for Inst {
+    fn drop(&mut self) {
+        unsafe { (api().fmi2FreeInstance)(self.c) };
+    }
+}
+
+fn cstr(s: &str) -> CString {
+    CString::new(s).unwrap()
+}
+
+/// All Real outputs of a scene, in table order.
+fn real_outputs(u: &Unpacked) -> Vec<Vr> {
+    VariableTable::new(&u.scene)
+        .vars
+        .iter()
+        .filter(|v| v.causality == mps_solid::fmi::variables::Causality::Output)
+        .filter(|v| v.ty == mps_solid::fmi::variables::VarType::Real)
+        .map(|v| v.value_reference)
+        .collect()
+}
+
+#[test]
+fn platform_and_version() {
+    let _g = shared();
+    unsafe {
+        assert_eq!(
+            CStr::from_ptr((api().fmi2GetTypesPlatform)())
+                .to_str()
+                .unwrap(),
+            "default"
+        );
+        assert_eq!(
+            CStr::from_ptr((api().fmi2GetVersion)()).to_str().unwrap(),
+            "2.0"
+        );
+    }
+}
+
+#[test]
+fn normal_sequence_3d() {
+    let _g = shared();
+    let u = Unpacked::new("small3d.json", "normal");
+    let i = Inst::new(&u);
+    let (uz, ux, steps, ke, rz) = (
+        u.vr("tip.uz"),
+        u.vr("tip.ux"),
+        u.vr("steps"),
+        u.vr("kinetic_energy"),
+        u.vr("clamp.reaction_z"),
+    );
+    unsafe {
+        assert_eq!((api().fmi2SetupExperiment)(i.c, 1, 1e-6, 0.0, 1, 0.2), OK);
+        assert_eq!((api().fmi2EnterInitializationMode)(i.c), OK);
+    }
+    // Initial outputs: the reference state.
+    assert_eq!(i.real(&[uz, ux, ke]), vec![0.0; 3]);
+    assert!(
+        i.real(&[rz])[0].abs() < 1e-9,
+        "reference state: no reaction but round-off"
+    );
+    assert_eq!(i.int(&[steps, u.vr("fracture_count")]), vec![0, 0]);
+    assert_eq!(
+        i.real(&[u.vr("gravity_z"), u.vr("beam.young")]),
+        vec![-9.81, 1e6]
+    );
+    unsafe { assert_eq!((api().fmi2ExitInitializationMode)(i.c), OK) };
+    let h = 0.002;
+    for k in 0..50 {
+        assert_eq!(i.step(k as f64 * h, h), OK, "{}", i.log.all());
+    }
+    let v = i.real(&[uz, ke, rz]);
+    assert!(v[0] < 0.0 && v[0] > -0.1, "tip deflection {}", v[0]);
+    assert!(v[1] > 0.0);
+    assert!(
+        v[2] > 0.0,
+        "the clamp holds the beam up: reaction_z {}",
+        v[2]
+    );
+    assert!(i.int(&[steps])[0] >= 50);
+    let mut t = 0.0;
+    unsafe {
+        assert_eq!((api().fmi2GetRealStatus)(i.c, 2, &mut t), OK);
+        assert_eq!(t, 49.0 * h + h);
+        let mut term = -1;
+        assert_eq!((api().fmi2GetBooleanStatus)(i.c, 3, &mut term), OK);
+        assert_eq!(term, 0);
+        assert_eq!((api().fmi2Terminate)(i.c), OK);
+    }
+    // Values stay readable after termination.
+    assert_eq!(i.real(&[uz])[0], v[0]);
+}
+
+#[test]
+fn normal_sequence_2d_with_prescribed_motion_and_load() {
+    let _g = shared();
+    let u = Unpacked::new("small2d.json", "normal");
+    let table = VariableTable::new(&u.scene);
+    assert!(table.by_name("tip.uz").is_none() && table.by_name("gravity_z").is_none());
+    assert!(table.by_name("holder.dz").is_none() && table.by_name("tip_load.fz").is_none());
+    let i = Inst::new(&u);
+    i.init(None);
+    let (gx, gy, dx, fy) = (
+        u.vr("gravity_x"),
+        u.vr("gravity_y"),
+        u.vr("holder.dx"),
+        u.vr("tip_load.fy"),
+    );
+    assert_eq!(i.set(&[gx, gy, dx], &[0.0, 0.0, 0.001]), OK);
+    assert_eq!(i.real(&[dx, gy]), vec![0.001, 0.0]);
+    let h = 0.002;
+    assert_eq!(i.step(0.0, h), OK);
+    // The group reaches the displacement set before the step at its end; the body follows.
+    let (tip_ux, mid_uy, rx) = (u.vr("tip.ux"), u.vr("mid.uy"), u.vr("holder.reaction_x"));
+    assert!(i.real(&[rx])[0] != 0.0);
+    for k in 1..40 {
+        assert_eq!(i.step(k as f64 * h, h), OK);
+    }
+    let ux = i.real(&[tip_ux])[0];
+    assert!(ux > 0.0 && ux < 0.003, "tip ux {ux}");
+    let uy = i.real(&[mid_uy])[0];
+    // (not exactly 0: the probe sits between particles and is interpolated from one side)
+    assert!(
+        uy.abs() < 1e-2 * ux,
+        "no gravity, no load: no bending (mid uy {uy}, tip ux {ux})"
+    );
+    assert_eq!(i.set(&[fy], &[-5.0]), OK);
+    for k in 40..80 {
+        assert_eq!(i.step(k as f64 * h, h), OK);
+    }
+    assert!(
+        i.real(&[u.vr("tip.uy")])[0] < -1e-5,
+        "the tip load bends the strip down"
+    );
+}
+
+#[test]
+fn gravity_law_until_set() {
+    let _g = shared();
+    let u = Unpacked::new("small3d.json", "gravity");
+    let (uz, gz) = (u.vr("tip.uz"), u.vr("gravity_z"));
+    let run = |set: Option<f64>| {
+        let i = Inst::new(&u);
+        if let Some(g) = set {
+            assert_eq!(i.set(&[gz], &[g]), OK);
+        }
+        i.init(None);
+        for k in 0..10 {
+            assert_eq!(i.step(k as f64 * 0.002, 0.002), OK);
+        }
+        i.real(&[uz])[0]
+    };
+    let ramp = run(None);
+    // Setting the start value again keeps the scene's law (the ramp).
+    assert_eq!(run(Some(-9.81)).to_bits(), ramp.to_bits());
+    // Any other value holds gravity constant: the full value at once deflects more than the ramp.
+    let sudden = run(Some(-9.810000001));
+    assert!(sudden < ramp, "sudden {sudden} vs ramp {ramp}");
+}
+
+#[test]
+fn parameters_before_and_during_initialisation() {
+    let _g = shared();
+    let u = Unpacked::new("small3d.json", "params");
+    let (young, uz) = (u.vr("beam.young"), u.vr("tip.uz"));
+    let run = |e: Option<f64>, during_init: bool| {
+        let i = Inst::new(&u);
+        unsafe { assert_eq!((api().fmi2SetupExperiment)(i.c, 0, 0.0, 0.0, 0, 0.0), OK) };
+        if let (Some(e), false) = (e, during_init) {
+            assert_eq!(i.set(&[young], &[e]), OK);
+        }
+        unsafe { assert_eq!((api().fmi2EnterInitializationMode)(i.c), OK) };
+        if let (Some(e), true) = (e, during_init) {
+            assert_eq!(i.set(&[young], &[e]), OK);
+            assert_eq!(i.real(&[young])[0], e);
+        }
+        unsafe { assert_eq!((api().fmi2ExitInitializationMode)(i.c), OK) };
+        for k in 0..40 {
+            assert_eq!(i.step(k as f64 * 0.002, 0.002), OK);
+        }
+        // Parameters are fixed once initialisation is over.
+        i.expect_err(i.set(&[young], &[1e7]), "fixed parameter");
+        i.real(&[uz])[0]
+    };
+    let soft = run(None, false);
+    let stiff = run(Some(4e6), false);
+    assert!(stiff.abs() < 0.8 * soft.abs(), "stiff {stiff} soft {soft}");
+    assert_eq!(run(Some(4e6), true).to_bits(), stiff.to_bits());
+}
+
+#[test]
+fn wrong_call_order() {
+    let _g = shared();
+    let u = Unpacked::new("small3d.json", "order");
+    let i = Inst::new(&u);
+    let a = api();
+    let uz = u.vr("tip.uz");
+    let mut x = 0.0;
+    let mut st: *mut c_void = null_mut();
+    unsafe {
+        // Instantiated.
+        i.expect_err((a.fmi2DoStep)(i.c, 0.0, 0.01, 1), "illegal call sequence");
+        i.expect_err(
+            (a.fmi2GetReal)(i.c, &uz, 1, &mut x),
+            "illegal call sequence",
+        );
+        i.expect_err((a.fmi2ExitInitializationMode)(i.c), "illegal call sequence");
+        i.expect_err((a.fmi2Terminate)(i.c), "illegal call sequence");
+        i.expect_err((a.fmi2GetFMUstate)(i.c, &mut st), "illegal call sequence");
+        i.expect_err(
+            (a.fmi2GetRealStatus)(i.c, 2, &mut x),
+            "illegal call sequence",
+        );
+        assert_eq!((a.fmi2EnterInitializationMode)(i.c), OK);
+        // Initialization mode.
+        i.expect_err(
+            (a.fmi2EnterInitializationMode)(i.c),
+            "illegal call sequence",
+        );
+        i.expect_err(
+            (a.fmi2SetupExperiment)(i.c, 0, 0.0, 0.0, 0, 0.0),
+            "illegal call sequence",
+        );
+        i.expect_err((a.fmi2DoStep)(i.c, 0.0, 0.01, 1), "illegal call sequence");
+        i.expect_err((a.fmi2Terminate)(i.c), "illegal call sequence");
+        assert_eq!((a.fmi2ExitInitializationMode)(i.c), OK);
+        // Step complete.
+        i.expect_err((a.fmi2ExitInitializationMode)(i.c), "illegal call sequence");
+        i.expect_err(
+            (a.fmi2EnterInitializationMode)(i.c),
+            "illegal call sequence",
+        );
+        i.expect_err(
+            (a.fmi2SetupExperiment)(i.c, 0, 0.0, 0.0, 0, 0.0),
+            "illegal call sequence",
+        );
+        assert_eq!((a.fmi2DoStep)(i.c, 0.0, 0.01, 1), OK);
+        assert_eq!((a.fmi2Terminate)(i.c), OK);
+        // Terminated.
+        i.expect_err((a.fmi2DoStep)(i.c, 0.01, 0.01, 1), "illegal call sequence");
+        i.expect_err((a.fmi2Terminate)(i.c), "illegal call sequence");
+        i.expect_err(i.set(&[u.vr("gravity_z")], &[1.0]), "illegal call sequence");
+        i.expect_err(
+            (a.fmi2EnterInitializationMode)(i.c),
+            "illegal call sequence",
+        );
+        // Reset goes back to the start: the same run again gives the same numbers.
+        let first = i.real(&[uz])[0];
+        assert_eq!((a.fmi2Reset)(i.c), OK);
+        i.expect_err(
+            (a.fmi2GetReal)(i.c, &uz, 1, &mut x),
+            "illegal call sequence",
+        );
+        i.init(None);
+        assert_eq!(i.real(&[uz])[0], 0.0);
+        assert_eq!((a.fmi2DoStep)(i.c, 0.0, 0.01, 1), OK);
+        assert_eq!(i.real(&[uz])[0].to_bits(), first.to_bits());
+    }
+}
+
+#[test]
+fn do_step_arguments() {
+    let _g = shared();
+    let u = Unpacked::new("small3d.json", "dostep");
+    let i = Inst::new(&u);
+    i.init(Some(0.05));
+    i.expect_err(i.step(0.0, 0.0), "communicationStepSize");
+    i.expect_err(i.step(0.0, -0.01), "communicationStepSize");
+    i.expect_err(i.step(0.0, f64::NAN), "communicationStepSize");
+    i.expect_err(i.step(0.001, 0.01), "currentCommunicationPoint");
+    i.expect_err(i.step(0.0, 0.06), "after stopTime");
+    // Rejected calls change nothing: the run goes on. A step that does not divide the stop time
+    // ends exactly on the stop time; the time never drifts.
+    let h = 0.003;
+    let mut t = 0.0;
+    while t + h <= 0.05 {
+        assert_eq!(i.step(t, h), OK);
+        t += h;
+    }
+    assert_eq!(i.step(t, 0.05 - t), OK);
+    let mut last = 0.0;
+    unsafe { assert_eq!((api().fmi2GetRealStatus)(i.c, 2, &mut last), OK) };
+    assert_eq!(last, t + (0.05 - t));
+    i.expect_err(i.step(last, 0.001), "after stopTime");
+    // A point within the tolerance (1e-9 relative) is accepted.
+    let j = Inst::new(&u);
+    j.init(None);
+    assert_eq!(j.step(0.0, 0.01), OK);
+    assert_eq!(j.step(0.01 + 1e-12, 0.01), OK);
+}
+
+#[test]
+fn null_pointers() {
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small3d.json", "null");
+    let vr: Vr = 0;
+    let mut x = 0.0;
+    let mut n: c_int = 0;
+    unsafe {
+        // NULL component: fmi2Error, no crash (there is no logger to tell).
+        assert_eq!((a.fmi2EnterInitializationMode)(null_mut()), ERROR);
+        assert_eq!((a.fmi2GetReal)(null_mut(), &vr, 1, &mut x), ERROR);
+        assert_eq!((a.fmi2DoStep)(null_mut(), 0.0, 0.1, 0), ERROR);
+        assert_eq!((a.fmi2SetDebugLogging)(null_mut(), 1, 0, null()), ERROR);
+        assert_eq!((a.fmi2GetStatus)(null_mut(), 0, &mut n), ERROR);
+        (a.fmi2FreeInstance)(null_mut());
+        let i = Inst::new(&u);
+        i.init(None);
+        // nvr = 0 with NULL arrays is legal.
+        assert_eq!((a.fmi2GetReal)(i.c, null(), 0, null_mut()), OK);
+        assert_eq!((a.fmi2SetReal)(i.c, null(), 0, null()), OK);
+        assert_eq!((a.fmi2GetInteger)(i.c, null(), 0, null_mut()), OK);
+        assert_eq!((a.fmi2GetBoolean)(i.c, null(), 0, null_mut()), OK);
+        assert_eq!((a.fmi2GetString)(i.c, null(), 0, null_mut()), OK);
+        assert_eq!((a.fmi2SetInteger)(i.c, null(), 0, null()), OK);
+        assert_eq!((a.fmi2SetBoolean)(i.c, null(), 0, null()), OK);
+        assert_eq!((a.fmi2SetString)(i.c, null(), 0, null()), OK);
+        i.expect_err((a.fmi2GetReal)(i.c, null(), 1, &mut x), "vr is NULL");
+        i.expect_err((a.fmi2GetReal)(i.c, &vr, 1, null_mut()), "value is NULL");
+        i.expect_err((a.fmi2SetReal)(i.c, null(), 2, &x), "vr is NULL");
+        i.expect_err((a.fmi2SetReal)(i.c, &vr, 1, null()), "value is NULL");
+        i.expect_err((a.fmi2GetInteger)(i.c, null(), 1, &mut n), "vr is NULL");
+        i.expect_err(
+            (a.fmi2SetDebugLogging)(i.c, 1, 2, null()),
+            "categories is NULL",
+        );
+        let cats = [null::<c_char>()];
+        i.expect_err(
+            (a.fmi2SetDebugLogging)(i.c, 1, 1, cats.as_ptr()),
+            "a category is NULL",
+        );
+        i.expect_err((a.fmi2GetFMUstate)(i.c, null_mut()), "FMUstate is NULL");
+        i.expect_err((a.fmi2SetFMUstate)(i.c, null_mut()), "FMUstate is NULL");
+        i.expect_err((a.fmi2FreeFMUstate)(i.c, null_mut()), "FMUstate is NULL");
+        let mut none: *mut c_void = null_mut();
+        assert_eq!(
+            (a.fmi2FreeFMUstate)(i.c, &mut none),
+            OK,
+            "freeing *FMUstate = NULL is a no-op"
+        );
+        i.expect_err(
+            (a.fmi2SerializedFMUstateSize)(i.c, null_mut(), &mut 0),
+            "FMUstate is NULL",
+        );
+        i.expect_err(
+            (a.fmi2DeSerializeFMUstate)(i.c, null(), 10, &mut none),
+            "serializedState is NULL",
+        );
+        i.expect_err((a.fmi2GetRealStatus)(i.c, 2, null_mut()), "value is NULL");
+        i.expect_err(
+            (a.fmi2GetBooleanStatus)(i.c, 3, null_mut()),
+            "value is NULL",
+        );
+        i.expect_err((a.fmi2GetStatus)(i.c, 0, null_mut()), "value is NULL");
+        // Still alive and stepping.
+        assert_eq!(i.step(0.0, 0.01), OK);
+    }
+    // NULL logger and NULL callbacks: the instance works, errors just are not reported.
+    let quiet = Inst::with(&u, &u.guid(), &u.uri(), false).expect("NULL logger accepted");
+    quiet.init(None);
+    assert_eq!(quiet.set(&[999], &[1.0]), ERROR);
+    assert_eq!(quiet.step(0.0, 0.01), OK);
+    assert_eq!(quiet.log.len(), 0);
+    unsafe {
+        let (name, g, uri) = (cstr("nocb"), cstr(&u.guid()), cstr(&u.uri()));
+        let c = (a.fmi2Instantiate)(name.as_ptr(), CS, g.as_ptr(), uri.as_ptr(), null(), 0, 1);
+        assert!(!c.is_null());
+        assert_eq!((a.fmi2EnterInitializationMode)(c), OK);
+        assert_eq!((a.fmi2Terminate)(c), ERROR);
+        (a.fmi2FreeInstance)(c);
+        // NULL name and GUID: NULL, with a message.
+        let log = Box::<Log>::default();
+        let cb = Callbacks {
+            logger: logger_ptr(),
+            allocate: null(),
+            free: null(),
+            step_finished: null(),
+            env: &*log as *const Log as *mut c_void,
+        };
+        assert!((a.fmi2Instantiate)(null(), CS, g.as_ptr(), uri.as_ptr(), &cb, 0, 0).is_null());
+        assert!(log.last().2.contains("instanceName is NULL"));
+        assert!((a.fmi2Instantiate)(name.as_ptr(), CS, null(), uri.as_ptr(), &cb, 0, 0).is_null());
+        assert!(log.last().2.contains("fmuGUID is NULL"));
+        assert!((a.fmi2Instantiate)(name.as_ptr(), CS, g.as_ptr(), null(), &cb, 0, 0).is_null());
+        assert!(log.last().2.contains("fmuResourceLocation is NULL"));
+    }
+}
+
+#[test]
+fn unknown_value_references_and_types() {
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small3d.json", "vr");
+    let i = Inst::new(&u);
+    i.init(None);
+    let mut x = [0.0; 2];
+    let mut n = [0 as c_int; 2];
+    let mut s = [null::<c_char>(); 1];
+    unsafe {
+        let bad = [u.vr("tip.uz"), 9999];
+        i.expect_err(
+            (a.fmi2GetReal)(i.c, bad.as_ptr(), 2, x.as_mut_ptr()),
+            "unknown value reference 9999",
+        );
+        i.expect_err(
+            (a.fmi2SetReal)(i.c, [9999].as_ptr(), 1, [1.0].as_ptr()),
+            "unknown value reference 9999",
+        );
+        i.expect_err(
+            (a.fmi2GetReal)(i.c, &u.vr("steps"), 1, x.as_mut_ptr()),
+            "Integer variable, not Real",
+        );
+        i.expect_err(
+            (a.fmi2GetInteger)(i.c, &u.vr("tip.uz"), 1, n.as_mut_ptr()),
+            "Real variable, not Integer",
+        );
+        i.expect_err(
+            (a.fmi2GetBoolean)(i.c, &0, 1, n.as_mut_ptr()),
+            "no Boolean variables",
+        );
+        i.expect_err(
+            (a.fmi2GetString)(i.c, &0, 1, s.as_mut_ptr()),
+            "no String variables",
+        );
+        i.expect_err(
+            (a.fmi2SetBoolean)(i.c, &0, 1, n.as_ptr()),
+            "no Boolean variables",
+        );
+        i.expect_err(
+            (a.fmi2SetString)(i.c, &0, 1, s.as_ptr()),
+            "no String variables",
+        );
+        i.expect_err(
+            (a.fmi2SetInteger)(i.c, &u.vr("steps"), 1, n.as_ptr()),
+            "output and cannot be set",
+        );
+        i.expect_err(i.set(&[u.vr("tip.uz")], &[1.0]), "output and cannot be set");
+    }
+    assert_eq!(i.step(0.0, 0.01), OK);
+}
+
+#[test]
+fn nan_and_infinite_inputs_are_rejected() {
+    let _g = shared();
+    let u = Unpacked::new("small3d.json", "nan");
+    let i = Inst::new(&u);
+    let (gz, fz, dz, rho) = (
+        u.vr("gravity_z"),
+        u.vr("tip_load.fz"),
+        u.vr("clamp.dz"),
+        u.vr("beam.density"),
+    );
+    i.expect_err(i.set(&[rho], &[f64::NAN]), "values must be finite");
+    i.expect_err(i.set(&[rho], &[-1.0]), "positive");
+    i.expect_err(i.set(&[u.vr("beam.poisson")], &[0.5]), "Poisson");
+    i.init(None);
+    assert_eq!(i.real(&[rho])[0], 1000.0);
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        // Nothing of a call with one bad value is applied.
+        i.expect_err(i.set(&[fz, gz], &[5.0, bad]), "values must be finite");
+        i.expect_err(i.set(&[dz], &[bad]), "values must be finite");
+    }
+    assert_eq!(i.real(&[gz, fz, dz]), vec![-9.81, 0.0, 0.0]);
+    for k in 0..5 {
+        assert_eq!(i.step(k as f64 * 0.002, 0.002), OK);
+    }
+    assert!(i.real(&real_outputs(&u)).iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn instantiate_rejects_bad_guid_type_and_resources() {
+    let _g = shared();
+    let u = Unpacked::new("small3d.json", "inst");
+    let fail = |guid: &str, uri: &str, needle: &str| {
+        let log = Inst::with(&u, guid, uri, true)
+            .err()
+            .expect("instantiation must fail");
+        let (s, cat, msg) = log.last();
+        assert_eq!((s, cat.as_str()), (ERROR, "logStatusError"));
+        assert!(msg.contains(needle), "'{msg}' does not contain '{needle}'");
+    };
+    fail(
+        "{00000000-0000-0000-0000-000000000000}",
+        &u.uri(),
+        "GUID mismatch",
+    );
+    fail(
+        &u.guid(),
+        &format!("file://{}/nowhere", u.dir.display()),
+        "cannot read the FMU's scene",
+    );
+    fail(
+        &u.guid(),
+        "http://example.com/resources",
+        "not a local file URI",
+    );
+    fail(&u.guid(), "relative/resources", "not a local file URI");
+    // The message is passed through "%s": a '%' in it arrives intact.
+    fail(
+        &u.guid(),
+        "file:///tmp/%zz%s%n",
+        "bad percent escape in 'file:///tmp/%zz%s%n'"
+            .split(" in")
+            .next()
+            .unwrap(),
+    );
+    fail(&u.guid(), "file:///tmp/%zz%s%n", "file:///tmp/%zz%s%n");
+    let bad = Unpacked::new("small3d.json", "malformed");
+    std::fs::write(bad.dir.join("resources/scene.json"), "{ \"name\": ").unwrap();
+    fail(&bad.guid(), &bad.uri(), "is invalid");
+    // Model exchange is refused.
+    unsafe {
+        let log = Box::<Log>::default();
+        let cb = Callbacks {
+            logger: logger_ptr(),
+            allocate: null(),
+            free: null(),
+            step_finished: null(),
+            env: &*log as *const Log as *mut c_void,
+        };
+        let (name, g, uri) = (cstr("me"), cstr(&u.guid()), cstr(&u.uri()));
+        assert!(
+            (api().fmi2Instantiate)(name.as_ptr(), 0, g.as_ptr(), uri.as_ptr(), &cb, 0, 0)
+                .is_null()
+        );
+        assert!(log.last().2.contains("Co-Simulation only"));
+        assert_eq!(
+            log.0.lock().unwrap().last().unwrap().3,
+            "me",
+            "the logger gets the instance name"
+        );
+    }
+    // Percent-encoded paths, file:/ and file://localhost/ forms and a trailing '/' are read.
+    let spaced = Unpacked::from_scene(u.scene.clone(), "a b%c");
+    let enc = spaced
+        .dir
+        .display()
+        .to_string()
+        .replace('%', "%25")
+        .replace(' ', "%20");
+    for uri in [
+        format!("file://{enc}/resources/"),
+        format!("file:{enc}/resources"),
+        format!("file://localhost{enc}/resources"),
+    ] {
+        let i = Inst::with(&spaced, &spaced.guid(), &uri, true)
+            .unwrap_or_else(|l| panic!("{uri}: {}", l.all()));
+        i.init(None);
+    }
+}
+
+#[test]
+fn fmu_state_roundtrip_is_bitwise() {
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small3d.json", "state");
+    let outs = real_outputs(&u);
+    let (fz, steps) = (u.vr("tip_load.fz"), u.vr("steps"));
+    let i = Inst::new(&u);
+    i.init(None);
+    let h = 0.002;
+    for k in 0..10 {
+        assert_eq!(i.step(k as f64 * h, h), OK);
+    }
+    assert_eq!(i.set(&[fz], &[-3.0]), OK);
+    let mut st: *mut c_void = null_mut();
+    unsafe { assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK) };
+    assert!(!st.is_null());
+    let run = |inst: &Inst, from: usize| -> Vec<u64> {
+        let mut v = Vec::new();
+        for k in from..from + 10 {
+            if k == from + 5 {
+                assert_eq!(inst.set(&[fz], &[2.0]), OK);
+            }
+            assert_eq!(inst.step(k as f64 * h, h), OK);
+            v.extend(inst.real(&outs).iter().map(|x| x.to_bits()));
+            v.extend(inst.int(&[steps]).iter().map(|&x| x as u64));
+        }
+        v
+    };
+    let first = run(&i, 10);
+    unsafe { assert_eq!((a.fmi2SetFMUstate)(i.c, st), OK) };
+    assert_eq!(i.real(&[fz])[0], -3.0, "inputs are part of the state");
+    let again = run(&i, 10);
+    assert_eq!(first, again, "restored run differs");
+    // Serialised, restored into a fresh instance: still bitwise the same.
+    let mut size = 0usize;
+    unsafe {
+        assert_eq!((a.fmi2SerializedFMUstateSize)(i.c, st, &mut size), OK);
+        let mut buf = vec![0 as c_char; size];
+        i.expect_err(
+            (a.fmi2SerializeFMUstate)(i.c, st, buf.as_mut_ptr(), size - 1),
+            "needs",
+        );
+        assert_eq!(
+            (a.fmi2SerializeFMUstate)(i.c, st, buf.as_mut_ptr(), size),
+            OK
+        );
+        // Reusing an existing state handle is allowed (GetFMUstate overwrites it).
+        assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK);
+        assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
+        assert!(st.is_null());
+        let j = Inst::new(&u);
+        j.init(None);
+        let mut st2: *mut c_void = null_mut();
+        assert_eq!(
+            (a.fmi2DeSerializeFMUstate)(j.c, buf.as_ptr(), size, &mut st2),
+            OK
+        );
+        assert_eq!((a.fmi2SetFMUstate)(j.c, st2), OK);
+        assert_eq!((a.fmi2FreeFMUstate)(j.c, &mut st2), OK);
+        assert_eq!(run(&j, 10), first, "deserialised run differs");
+        // Corrupt or foreign data is refused with a message.
+        let mut bad = buf.clone();
+        bad[0] = b'X' as c_char;
+        j.expect_err(
+            (a.fmi2DeSerializeFMUstate)(j.c, bad.as_ptr(), size, &mut st2),
+            "bad magic",
+        );
+        let mut bad = buf.clone();
+        bad[8] = 99;
+        j.expect_err(
+            (a.fmi2DeSerializeFMUstate)(j.c, bad.as_ptr(), size, &mut st2),
+            "format version",
+        );
+        j.expect_err(
+            (a.fmi2DeSerializeFMUstate)(j.c, buf.as_ptr(), size / 2, &mut st2),
+            "cannot decode",
+        );
+        let other = Unpacked::new("small2d.json", "state");
+        let k = Inst::new(&other);
+        k.init(None);
+        k.expect_err(
+            (a.fmi2DeSerializeFMUstate)(k.c, buf.as_ptr(), size, &mut st2),
+            "another GUID",
+        );
+        assert!(st2.is_null());
+    }
+}
+
+#[test]
+fn solver_blow_up_is_an_error_with_finite_outputs() {
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small3d.json", "blowup");
+    let outs = real_outputs(&u);
+    let i = Inst::new(&u);
+    unsafe { assert_eq!((a.fmi2EnterInitializationMode)(i.c), OK) };
+    // A fixed step far above the stability limit.
+    assert_eq!(i.set(&[u.vr("solver.dt")], &[0.005]), OK);
+    unsafe { assert_eq!((a.fmi2ExitInitializationMode)(i.c), OK) };
+    let mut st: *mut c_void = null_mut();
+    unsafe { assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK) };
+    let mut t = 0.0;
+    let mut status = OK;
+    while status == OK && t < 10.0 {
+        status = i.step(t, 0.05);
+        if status == OK {
+            t += 0.05;
+        }
+    }
+    i.expect_err(status, "blow-up");
+    assert!(
+        i.real(&outs).iter().all(|x| x.is_finite()),
+        "outputs stay finite"
+    );
+    let mut last = -1.0;
+    unsafe {
+        assert_eq!((a.fmi2GetRealStatus)(i.c, 2, &mut last), OK);
+        assert_eq!(last, t);
+        i.expect_err((a.fmi2DoStep)(i.c, t, 0.05, 1), "illegal call sequence");
+        // Restoring a state leaves the error state.
+        assert_eq!((a.fmi2SetFMUstate)(i.c, st), OK);
+        assert_eq!((a.fmi2DoStep)(i.c, 0.0, 0.001, 1), OK);
+        assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
+        assert_eq!((a.fmi2Reset)(i.c), OK);
+    }
+    i.init(None);
+    assert_eq!(i.step(0.0, 0.05), OK);
+}
+
+#[test]
+fn status_queries_and_unsupported_functions() {
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small3d.json", "status");
+    let i = Inst::new(&u);
+    i.init(None);
+    let mut n: c_int = -1;
+    let mut x = 0.0;
+    let mut s: *const c_char = null();
+    let vr: Vr = 0;
+    unsafe {
+        let discard = |st: c_int, needle: &str| {
+            assert_eq!(st, DISCARD);
+            let (ls, cat, msg) = i.log.last();
+            assert_eq!((ls, cat.as_str()), (DISCARD, "logStatusWarning"));
+            assert!(msg.contains(needle), "{msg}");
+        };
+        discard(
+            (a.fmi2GetStatus)(i.c, 0, &mut n),
+            "never returns fmi2Pending",
+        );
+        discard((a.fmi2GetIntegerStatus)(i.c, 0, &mut n), "not provided");
+        discard((a.fmi2GetStringStatus)(i.c, 1, &mut s), "pending");
+        discard(
+            (a.fmi2GetRealStatus)(i.c, 0, &mut x),
+            "only fmi2LastSuccessfulTime",
+        );
+        discard(
+            (a.fmi2GetBooleanStatus)(i.c, 0, &mut n),
+            "only fmi2Terminated",
+        );
+        i.expect_err((a.fmi2CancelStep)(i.c), "not supported");
+        i.expect_err(
+            (a.fmi2GetDirectionalDerivative)(i.c, &vr, 1, &vr, 1, &x, &mut x),
+            "not supported",
+        );
+        i.expect_err(
+            (a.fmi2SetRealInputDerivatives)(i.c, &vr, 1, &1, &x),
+            "not supported",
+        );
+        i.expect_err(
+            (a.fmi2GetRealOutputDerivatives)(i.c, &vr, 1, &1, &mut x),
+            "not supported",
+        );
+        // Debug logging: categories from the model description; unknown ones refused.
+        let ev = cstr("logEvents");
+        let bad = cstr("logNothing");
+        i.expect_err(
+            (a.fmi2SetDebugLogging)(i.c, 1, 1, [bad.as_ptr()].as_ptr()),
+            "unknown log category 'logNothing'",
+        );
+        assert_eq!(
+            (a.fmi2SetDebugLogging)(i.c, 1, 1, [ev.as_ptr()].as_ptr()),
+            OK
+        );
+        let before = i.log.len();
+        let mut st: *mut c_void = null_mut();
+        assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK);
+        assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
+        assert!(i.log.len() > before);
+        let (ls, cat, _) = i.log.last();
+        assert_eq!((ls, cat.as_str()), (OK, "logEvents"));
+        assert_eq!((a.fmi2SetDebugLogging)(i.c, 0, 0, null()), OK);
+        let before = i.log.len();
+        assert_eq!((a.fmi2Reset)(i.c), OK);
+        assert_eq!(i.log.len(), before, "logging off: no events");
+    }
+    let _ = FATAL;
+}
+
+/// Threads of this process named by FMU instances' pools ("fmu-<instance>-<k>").
+fn fmu_threads() -> usize {
+    std::fs::read_dir("/proc/self/task")
+        .unwrap()
+        .filter_map(|e| std::fs::read_to_string(e.ok()?.path().join("comm")).ok())
+        .filter(|n| n.starts_with("fmu-"))
+        .count()
+}
+
+/// Runs small3d for 20 steps with a tip load and returns every output's bits.
+fn run_small3d(u: &Unpacked) -> Vec<u64> {
+    let i = Inst::new(u);
+    i.init(None);
+    assert_eq!(i.set(&[u.vr("tip_load.fz")], &[-1.0]), OK);
+    let outs = real_outputs(u);
+    let mut v = Vec::new();
+    for k in 0..20 {
+        assert_eq!(i.step(k as f64 * 0.002, 0.002), OK);
+        v.extend(i.real(&outs).iter().map(|x| x.to_bits()));
+    }
+    v
+}
+
+#[test]
+fn instances_on_threads_and_no_thread_outlives_its_instance() {
+    let _g = PROCESS.write().unwrap_or_else(|e| e.into_inner());
+    let _ = (api(), logger_ptr());
+    let u = Unpacked::new("small3d.json", "threads");
+    // Only the instance's own (named) threads are counted: the process's total task count also
+    // moves with the test harness's threads running other tests, so it cannot be compared.
+    {
+        let i = Inst::new(&u);
+        // (a new thread takes its name once it runs)
+        let mut named = 0;
+        for _ in 0..200 {
+            named = fmu_threads();
+            if named >= 1 {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        assert!(
+            named >= 1,
+            "the worker threads are named fmu-<instance>-<k>"
+        );
+        i.init(None);
+        assert_eq!(i.step(0.0, 0.01), OK);
+    }
+    assert_eq!(
+        fmu_threads(),
+        0,
+        "fmi2FreeInstance joined every worker thread"
+    );
+    // Several instances in one process, one after the other and at the same time.
+    let reference = run_small3d(&u);
+    let a = Inst::new(&u);
+    let b = Inst::new(&u);
+    a.init(None);
+    b.init(None);
+    for k in 0..5 {
+        assert_eq!(a.step(k as f64 * 0.01, 0.01), OK);
+        assert_eq!(b.step(k as f64 * 0.01, 0.01), OK);
+    }
+    assert_eq!(a.real(&real_outputs(&u)), b.real(&real_outputs(&u)));
+    drop((a, b));
+    let results: Vec<Vec<u64>> = std::thread::scope(|s| {
+        let hs: Vec<_> = (0..3).map(|_| s.spawn(|| run_small3d(&u))).collect();
+        hs.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    for r in results {
+        assert_eq!(
+            r, reference,
+            "concurrent instances give the sequential result"
+        );
+    }
+    // A different scene at the same time as another.
+    let u2 = Unpacked::new("small2d.json", "threads");
+    std::thread::scope(|s| {
+        let h = s.spawn(|| {
+            let i = Inst::new(&u2);
+            i.init(None);
+            for k in 0..20 {
+                assert_eq!(i.step(k as f64 * 0.002, 0.002), OK);
+            }
+        });
+        assert_eq!(run_small3d(&u), reference);
+        h.join().unwrap();
+    });
+    assert_eq!(fmu_threads(), 0, "no worker thread left");
+}
+
+#[test]
+fn fmu_state_carries_its_parameters() {
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small3d.json", "stateparams");
+    let (young, uz) = (u.vr("beam.young"), u.vr("tip.uz"));
+    // Instance A: a stiffer beam, state captured after 10 steps, then 10 more.
+    let stiff = Inst::new(&u);
+    assert_eq!(stiff.set(&[young], &[3e6]), OK);
+    stiff.init(None);
+    for k in 0..10 {
+        assert_eq!(stiff.step(k as f64 * 0.002, 0.002), OK);
+    }
+    let mut st: *mut c_void = null_mut();
+    let mut size = 0usize;
+    unsafe {
+        assert_eq!((a.fmi2GetFMUstate)(stiff.c, &mut st), OK);
+        assert_eq!((a.fmi2SerializedFMUstateSize)(stiff.c, st, &mut size), OK);
+    }
+    let mut buf = vec![0 as c_char; size];
+    unsafe {
+        assert_eq!(
+            (a.fmi2SerializeFMUstate)(stiff.c, st, buf.as_mut_ptr(), size),
+            OK
+        )
+    };
+    for k in 10..20 {
+        assert_eq!(stiff.step(k as f64 * 0.002, 0.002), OK);
+    }
+    let expected = stiff.real(&[uz])[0];
+    // Instance B with the scene's parameters takes A's state: it is rebuilt with A's parameters.
+    let other = Inst::new(&u);
+    other.init(None);
+    unsafe {
+        let mut st2: *mut c_void = null_mut();
+        assert_eq!(
+            (a.fmi2DeSerializeFMUstate)(other.c, buf.as_ptr(), size, &mut st2),
+            OK
+        );
+        assert_eq!((a.fmi2SetFMUstate)(other.c, st2), OK);
+        assert_eq!((a.fmi2FreeFMUstate)(other.c, &mut st2), OK);
+        assert_eq!((a.fmi2FreeFMUstate)(stiff.c, &mut st), OK);
+    }
+    assert_eq!(other.real(&[young])[0], 3e6);
+    for k in 10..20 {
+        assert_eq!(other.step(k as f64 * 0.002, 0.002), OK);
+    }
+    assert_eq!(other.real(&[uz])[0].to_bits(), expected.to_bits());
+}

@@ -1,0 +1,225 @@
+//! modelDescription.xml: modelDescription/<scene>.xml is the generated XML of every scene in
+//! scenes/ (regenerate with `cargo run --release --example pack_scenes -- --write-xml
+//! modelDescription scenes/*.json`), its structure follows the variable table, and pack_fmu
+//! writes a complete FMU.
+use mps_solid::fmi::model_description::guid;
+use mps_solid::fmi::pack::{documentation_html, model_description_xml, pack_fmu};
+use mps_solid::fmi::variables::{Causality, VariableTable};
+use mps_solid::Scene;
+use quick_xml::events::Event;
+use quick_xml::Reader;
+use std::collections::HashMap;
+use std::io::Read;
+use std::path::PathBuf;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scenes() -> Vec<(PathBuf, Scene)> {
+    let mut v: Vec<_> = std::fs::read_dir(root().join("scenes"))
+        .map(|d| d.filter_map(|e| e.ok()).map(|e| e.path()).collect())
+        .unwrap_or_default();
+    v.retain(|p: &PathBuf| p.extension().is_some_and(|e| e == "json"));
+    v.sort();
+    v.into_iter()
+        .map(|p| (p.clone(), Scene::load(&p).unwrap()))
+        .collect()
+}
+
+#[test]
+fn committed_model_descriptions_are_fresh() {
+    let all = scenes();
+    assert!(!all.is_empty(), "no scenes/*.json");
+    for (path, scene) in all {
+        let file = root()
+            .join("modelDescription")
+            .join(format!("{}.xml", scene.name));
+        let committed = std::fs::read_to_string(&file).unwrap_or_default();
+        assert!(
+            committed == model_description_xml(&scene),
+            "{} is stale for {}: run `cargo run --release --example pack_scenes -- --write-xml modelDescription scenes/*.json`",
+            file.display(),
+            path.display()
+        );
+    }
+}
+
+/// Elements with their attributes, in document order.
+fn elements(xml: &str) -> Vec<(String, HashMap<String, String>)> {
+    let mut r = Reader::from_str(xml);
+    let mut out = Vec::new();
+    loop {
+        match r.read_event().expect("well-formed XML") {
+            Event::Start(e) | Event::Empty(e) => {
+                let name = String::from_utf8(e.name().as_ref().to_vec()).unwrap();
+                let attrs = e
+                    .attributes()
+                    .map(|a| {
+                        let a = a.unwrap();
+                        (
+                            String::from_utf8(a.key.as_ref().to_vec()).unwrap(),
+                            a.unescape_value().unwrap().into_owned(),
+                        )
+                    })
+                    .collect();
+                out.push((name, attrs));
+            }
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    out
+}
+
+#[test]
+fn xml_follows_the_variable_table() {
+    let mut all: Vec<Scene> = scenes().into_iter().map(|(_, s)| s).collect();
+    for f in ["small2d.json", "small3d.json"] {
+        all.push(Scene::load(&root().join("tests/data").join(f)).unwrap());
+    }
+    for scene in all {
+        let xml = model_description_xml(&scene);
+        let table = VariableTable::new(&scene);
+        let els = elements(&xml);
+        let root_attrs = &els[0].1;
+        assert_eq!(els[0].0, "fmiModelDescription");
+        assert_eq!(root_attrs["fmiVersion"], "2.0");
+        assert_eq!(root_attrs["guid"], guid(&scene));
+        assert_eq!(root_attrs["variableNamingConvention"], "structured");
+        let cs = &els.iter().find(|e| e.0 == "CoSimulation").unwrap().1;
+        assert_eq!(cs["modelIdentifier"], scene.name);
+        for flag in [
+            "canHandleVariableCommunicationStepSize",
+            "canGetAndSetFMUstate",
+            "canSerializeFMUstate",
+            "canInterpolateInputs",
+        ] {
+            assert_eq!(cs[flag], "true", "{flag}");
+        }
+        let de = &els.iter().find(|e| e.0 == "DefaultExperiment").unwrap().1;
+        assert_eq!(de["stopTime"].parse::<f64>().unwrap(), scene.end_time);
+        assert_eq!(
+            de["stepSize"].parse::<f64>().unwrap(),
+            scene.output_interval
+        );
+        let units: Vec<&str> = els
+            .iter()
+            .filter(|e| e.0 == "Unit")
+            .map(|e| e.1["name"].as_str())
+            .collect();
+        // Every variable in table order, with the attributes the standard requires.
+        let vars: Vec<usize> = (0..els.len())
+            .filter(|&i| els[i].0 == "ScalarVariable")
+            .collect();
+        assert_eq!(vars.len(), table.vars.len());
+        for (v, &i) in table.vars.iter().zip(&vars) {
+            let (sv, ty) = (&els[i].1, &els[i + 1]);
+            assert_eq!(sv["name"], v.name);
+            assert_eq!(sv["valueReference"], v.value_reference.to_string());
+            assert_eq!(sv["causality"], v.causality.name());
+            assert_eq!(ty.0, v.ty.name());
+            match v.causality {
+                Causality::Output => {
+                    assert_eq!(sv["initial"], "calculated");
+                    assert!(
+                        !ty.1.contains_key("start"),
+                        "{}: outputs have no start",
+                        v.name
+                    );
+                }
+                _ => {
+                    assert!(!sv.contains_key("initial"), "{}", v.name);
+                    assert_eq!(ty.1["start"].parse::<f64>().unwrap(), v.start.unwrap());
+                }
+            }
+            if let Some(u) = ty.1.get("unit") {
+                assert!(units.contains(&u.as_str()), "unit {u} undefined");
+            }
+        }
+        // ModelStructure: 1-based indices of every output, in Outputs and InitialUnknowns.
+        let expected: Vec<String> = table
+            .output_indices()
+            .iter()
+            .map(|i| i.to_string())
+            .collect();
+        let start = els.iter().position(|e| e.0 == "Outputs").unwrap();
+        let init = els.iter().position(|e| e.0 == "InitialUnknowns").unwrap();
+        let idx = |range: std::ops::Range<usize>| -> Vec<String> {
+            els[range]
+                .iter()
+                .filter(|e| e.0 == "Unknown")
+                .map(|e| e.1["index"].clone())
+                .collect()
+        };
+        assert_eq!(idx(start..init), expected);
+        assert_eq!(idx(init..els.len()), expected);
+        for e in &els[init..] {
+            if e.0 == "Unknown" {
+                let deps = &e.1["dependencies"];
+                for d in deps.split_whitespace() {
+                    let k: usize = d.parse().unwrap();
+                    assert_eq!(table.vars[k - 1].causality, Causality::Parameter);
+                }
+            }
+        }
+    }
+}
+
+fn built_library() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let deps = exe.parent().unwrap();
+    let profile = if deps.ends_with("deps") {
+        deps.parent().unwrap()
+    } else {
+        deps
+    };
+    [
+        profile.join("deps/libmps_solid.so"),
+        profile.join("libmps_solid.so"),
+    ]
+    .into_iter()
+    .find(|p| p.exists())
+    .expect("libmps_solid.so next to the test")
+}
+
+#[test]
+fn pack_writes_a_complete_fmu() {
+    let scene = Scene::load(&root().join("tests/data/small3d.json")).unwrap();
+    let dir = std::env::temp_dir().join(format!("mps-pack-{}", std::process::id()));
+    let out = dir.join("sub/small3d.fmu");
+    pack_fmu(&scene, &built_library(), &out).unwrap();
+    let mut z = zip::ZipArchive::new(std::fs::File::open(&out).unwrap()).unwrap();
+    let mut read = |name: &str| {
+        let mut s = Vec::new();
+        z.by_name(name)
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
+            .read_to_end(&mut s)
+            .unwrap();
+        s
+    };
+    assert_eq!(
+        String::from_utf8(read("modelDescription.xml")).unwrap(),
+        model_description_xml(&scene)
+    );
+    assert_eq!(
+        Scene::from_json(&String::from_utf8(read("resources/scene.json")).unwrap()).unwrap(),
+        scene
+    );
+    assert_eq!(&read("binaries/linux64/small3d.so")[..4], b"\x7fELF");
+    let doc = String::from_utf8(read("documentation/index.html")).unwrap();
+    assert_eq!(doc, documentation_html(&scene));
+    for v in VariableTable::new(&scene).vars {
+        assert!(
+            doc.contains(&format!("<code>{}</code>", v.name)),
+            "{} undocumented",
+            v.name
+        );
+    }
+    // Errors name the problem.
+    let bad = pack_fmu(&scene, &root().join("Cargo.toml"), &dir.join("x.fmu")).unwrap_err();
+    assert!(bad.contains("not an ELF shared library"), "{bad}");
+    let missing = pack_fmu(&scene, &dir.join("nothing.so"), &dir.join("x.fmu")).unwrap_err();
+    assert!(missing.contains("cannot read the library"), "{missing}");
+    std::fs::remove_dir_all(&dir).ok();
+}

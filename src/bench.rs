@@ -121,6 +121,7 @@ pub fn markdown(
     rows: &[Row],
     single: Option<f64>,
     stability: &[(f64, String)],
+    fmu: Option<(f64, f64)>,
     threads: usize,
 ) -> String {
     let mut out = String::new();
@@ -146,6 +147,9 @@ pub fn markdown(
     if let Some(s) = single {
         let _ = writeln!(out, "\nSingle-thread 3D force loop (case 2, dp = 0.025): {s:.3e} pair-updates/s per core (a pair-update = one directed bond evaluated in one of the two force passes of a step).");
     }
+    if let Some((f, d)) = fmu {
+        let _ = writeln!(out, "\nFMU overhead (case 2, dp = 0.025, 600 communication steps of 1 ms, probe outputs read after each): FMI instance {f:.2} s, direct Simulation {d:.2} s, overhead {:+.1}%.", 100.0 * (f / d - 1.0));
+    }
     if !stability.is_empty() {
         let _ = writeln!(out, "\nStable step (case 2, dp = 0.025, 0.05 s):\n");
         for (f, s) in stability {
@@ -153,4 +157,99 @@ pub fn markdown(
         }
     }
     out
+}
+
+/// Case 2 (dp = 0.025) to 0.6 s in 1 ms communication steps, reading every probe output after
+/// each step: through the FMI instance (the safe layer under the C ABI: state machine, variable
+/// table, the instance's own thread pool) and directly through `Simulation`. Returns the wall
+/// times (s) of (FMU, direct).
+pub fn fmu_overhead() -> Result<(f64, f64), String> {
+    use crate::fmi::instance::{Instance, NoLogger};
+    use crate::fmi::variables::{Causality, VarType};
+    let scene = case2_scene(0.025, ElasticModel::Corrected, None, Support::Face);
+    let dir = std::env::temp_dir().join(format!("mps-bench-fmu-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("resources")).map_err(|e| e.to_string())?;
+    std::fs::write(dir.join("resources/scene.json"), scene.to_json()).map_err(|e| e.to_string())?;
+    let uri = format!("file://{}", dir.join("resources").display());
+    let guid = crate::fmi::model_description::guid(&scene);
+    let (h, n) = (1e-3, 600);
+    let fmu_time = {
+        let mut inst = Instance::instantiate(
+            "bench",
+            true,
+            &guid,
+            Some(&uri),
+            std::sync::Arc::new(NoLogger),
+            false,
+        )?;
+        let vrs: Vec<u32> = inst
+            .table()
+            .vars
+            .iter()
+            .filter(|v| {
+                v.causality == Causality::Output && v.ty == VarType::Real && v.name.contains(".u")
+            })
+            .map(|v| v.value_reference)
+            .collect();
+        let mut out = vec![0.0; vrs.len()];
+        inst.setup_experiment(0.0, Some(0.6))
+            .map_err(|e| e.message().to_string())?;
+        inst.enter_initialization_mode()
+            .map_err(|e| e.message().to_string())?;
+        inst.exit_initialization_mode()
+            .map_err(|e| e.message().to_string())?;
+        let start = Instant::now();
+        for k in 0..n {
+            inst.do_step(k as f64 * h, h)
+                .map_err(|e| e.message().to_string())?;
+            inst.get_real(&vrs, &mut out)
+                .map_err(|e| e.message().to_string())?;
+        }
+        start.elapsed().as_secs_f64()
+    };
+    let _ = std::fs::remove_dir_all(&dir);
+    let direct_time = {
+        let mut sim = Simulation::new(&scene).map_err(|e| e.to_string())?;
+        let mut sink = 0.0;
+        let start = Instant::now();
+        for k in 1..=n {
+            sim.advance_to(k as f64 * h).map_err(|e| e.to_string())?;
+            for p in 0..scene.probes.len() {
+                sink += sim.probe_displacement(p)[2];
+            }
+        }
+        std::hint::black_box(sink);
+        start.elapsed().as_secs_f64()
+    };
+    Ok((fmu_time, direct_time))
+}
+
+/// Case 3 with contact detection between fractured surfaces to 1.7 s at dp = 0.05: a row.
+pub fn case3_row() -> Result<Row, String> {
+    use crate::case3::{case3_report, case3_scene};
+    let scene = case3_scene(0.05, true, ElasticModel::Corrected);
+    let sim = Simulation::new(&scene).map_err(|e| e.to_string())?;
+    let bonds = sim.bonds();
+    drop(sim);
+    let r = case3_report(&scene, 1.7, 0.01, 0.0025, |_| {})?;
+    let f = |t: Option<f64>| t.map_or("-".to_string(), |t| format!("{t:.3}"));
+    Ok(Row {
+        case: 3,
+        dp: 0.05,
+        step: "auto".into(),
+        particles: r.particles,
+        bonds,
+        steps: r.steps,
+        wall_s: r.wall_time_s,
+        pair_updates_per_s: 2.0 * bonds as f64 * r.steps as f64 / r.wall_time_s,
+        error: 0.0,
+        note: format!(
+            "to {:.2} s; contact {} s, fracture {} s, {} broken bonds, {} contact searches (no error measure: no reference)",
+            r.end_time,
+            f(r.first_contact),
+            f(r.first_fracture),
+            r.final_broken_bonds,
+            r.contact_searches
+        ),
+    })
 }

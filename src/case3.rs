@@ -250,13 +250,14 @@ pub struct Case3Report {
 pub const MIN_FRAGMENT: usize = 20;
 
 /// Runs a case 3 scene to `end_time`, sampling every `interval` (s). Contact and fracture times
-/// are resolved to the sampling interval of the event checks, `check` (s).
+/// are resolved to the sampling interval of the event checks, `check` (s). `on_check` sees the
+/// simulation after every check (progress bars, snapshots).
 pub fn case3_report(
     scene: &Scene,
     end_time: f64,
     interval: f64,
     check: f64,
-    mut progress: impl FnMut(f64),
+    mut on_check: impl FnMut(&Simulation),
 ) -> Result<Case3Report, String> {
     let t0 = std::time::Instant::now();
     let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
@@ -308,7 +309,7 @@ pub fn case3_report(
             r.history.push(sample(&sim));
             break;
         }
-        progress(t);
+        on_check(&sim);
         let ev = events(&sim);
         if r.first_contact.is_none() && ev.inter_body_contact {
             r.first_contact = Some(t);

@@ -210,11 +210,15 @@ pub const PAPER_TABLE1: [(&str, f64, f64, f64); 3] = [
     ("Euler-Bernoulli (paper)", 0.081, 12.35, -0.042),
 ];
 
-/// The user-facing scene files under `scenes/`: cases 1 and 2 at the paper's dp = 0.025 m with
-/// the automatic time step and the corrected operator.
+/// The user-facing scene files under `scenes/`: cases 1 and 2 at the paper's dp = 0.025 m and
+/// both variants of case 3 at its dp = 0.05 m, with the automatic time step and the corrected
+/// operator.
 pub fn paper_scenes() -> Vec<Scene> {
+    use crate::case3::case3_scene;
     vec![
         case1_scene(0.025, ElasticModel::Corrected, None),
         case2_scene(0.025, ElasticModel::Corrected, None, Support::Face),
+        case3_scene(0.05, true, ElasticModel::Corrected),
+        case3_scene(0.05, false, ElasticModel::Corrected),
     ]
 }

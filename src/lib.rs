@@ -9,6 +9,7 @@ pub mod bench;
 pub mod case3;
 pub mod cases;
 pub mod fmi;
+pub mod output;
 pub mod physics;
 pub mod report;
 pub mod runner;

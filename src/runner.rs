@@ -144,8 +144,8 @@ pub fn series_csv(s: &Series, dimension: usize) -> String {
     for (n, t) in s.time.iter().enumerate() {
         out.push_str(&format!("{t:.9e}"));
         for d in &s.displacement {
-            for c in 0..dimension {
-                out.push_str(&format!(",{:.9e}", d[n][c]));
+            for c in &d[n][..dimension] {
+                out.push_str(&format!(",{c:.9e}"));
             }
         }
         out.push('\n');

@@ -23,7 +23,8 @@ fn error_of(v: serde_json::Value) -> String {
 
 #[test]
 fn each_bad_field_is_named() {
-    let cases: Vec<(&str, Box<dyn Fn(&mut serde_json::Value)>, &str)> = vec![
+    type Edit = Box<dyn Fn(&mut serde_json::Value)>;
+    let cases: Vec<(&str, Edit, &str)> = vec![
         (
             "unknown field",
             Box::new(|v| v["colour"] = "red".into()),

@@ -74,6 +74,34 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Run the paper's case 3 (cube hits a block; contact and fracture), both variants by default.
+    Case3 {
+        /// Particle spacing (m); the paper uses 0.05.
+        #[arg(long, default_value_t = 0.05)]
+        dp: f64,
+        /// End time (s).
+        #[arg(long, default_value_t = 1.7)]
+        end: f64,
+        /// Only the variant with contact detection between fractured surfaces (on) or without (off).
+        #[arg(long, value_parser = ["on", "off"])]
+        fractured_contact: Option<String>,
+        /// Write ParaView (VTU + PVD) and PNG snapshots every 0.1 s into this directory.
+        #[arg(long)]
+        snapshots: Option<PathBuf>,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Pack a scene into an FMI 2.0 co-simulation FMU.
+    Pack {
+        scene: PathBuf,
+        /// Output file (default: <scene name>.fmu).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The built library (default: libmps_solid.so next to this program).
+        #[arg(long)]
+        lib: Option<PathBuf>,
+    },
     /// Write the paper's scene files (as used under scenes/) into a directory.
     Scenes {
         #[arg(default_value = "scenes")]
@@ -229,7 +257,12 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 );
                 rows.push(row);
             }
+            if !quick {
+                eprintln!("bench: case 3");
+                rows.push(bench::case3_row()?);
+            }
             let single = bench::single_thread_throughput().ok();
+            let fmu = bench::fmu_overhead().ok();
             let stability: Vec<(f64, String)> = if quick {
                 vec![]
             } else {
@@ -238,12 +271,75 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     .map(|&f| (f, bench::stability_probe(f)))
                     .collect()
             };
-            let md = bench::markdown(&rows, single, &stability, rayon::current_num_threads());
+            let md = bench::markdown(&rows, single, &stability, fmu, rayon::current_num_threads());
             println!("{md}");
             if let Some(path) = out {
                 std::fs::write(&path, md)
                     .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
             }
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Case3 {
+            dp,
+            end,
+            fractured_contact,
+            snapshots,
+            json,
+        } => {
+            use mps_solid::case3::{case3_report, case3_scene, case3_text};
+            let variants: Vec<bool> = match fractured_contact.as_deref() {
+                Some("on") => vec![true],
+                Some("off") => vec![false],
+                _ => vec![true, false],
+            };
+            let mut reports = Vec::new();
+            for fc in variants {
+                let scene = case3_scene(dp, fc, ElasticModel::Corrected);
+                let pb = progress(end, &scene.name);
+                let mut snaps = Vec::new();
+                let mut next_snap = 0.0;
+                let r = case3_report(&scene, end, 0.01, 0.0025, |sim| {
+                    pb.set_position((sim.time() * 1e6) as u64);
+                    if snapshots.is_some() && sim.time() >= next_snap - 1e-9 {
+                        snaps.push(sim.particle_snapshot());
+                        next_snap += 0.1;
+                    }
+                })?;
+                pb.finish_and_clear();
+                if let Some(dir) = &snapshots {
+                    let files = mps_solid::output::write_series(
+                        dir,
+                        &scene.name,
+                        &snaps,
+                        Some(mps_solid::output::View::XZ),
+                    )?;
+                    eprintln!(
+                        "wrote {} snapshot files into {}",
+                        files.len(),
+                        dir.display()
+                    );
+                }
+                if !json {
+                    println!("{}", case3_text(&r));
+                }
+                reports.push(r);
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&reports).unwrap());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Pack { scene, out, lib } => {
+            let sc = Scene::load(&scene).map_err(|e| e.to_string())?;
+            let lib = match lib {
+                Some(l) => l,
+                None => std::env::current_exe()
+                    .map_err(|e| e.to_string())?
+                    .with_file_name("libmps_solid.so"),
+            };
+            let out = out.unwrap_or_else(|| PathBuf::from(format!("{}.fmu", sc.name)));
+            mps_solid::fmi::pack::pack_fmu(&sc, &lib, &out)?;
+            println!("wrote {}", out.display());
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Scenes { dir } => {

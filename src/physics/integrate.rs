@@ -90,7 +90,8 @@ where
             }
             let moved = (xn - *xi).norm();
             *bi = u8::from(
-                !(moved <= inp.max_move)
+                moved.is_nan()
+                    || moved > inp.max_move
                     || !vn.iter().all(|c| c.is_finite())
                     || !<Space as Dim<D>>::ang_finite(wi),
             );

@@ -184,9 +184,9 @@ where
                     )));
                 }
                 group_of[i] = gi as u32;
-                for k in 0..D {
-                    if g.axes[k] {
-                        p.fix[i] |= FIX_AXIS[k];
+                for (held, bit) in g.axes.iter().zip(FIX_AXIS).take(D) {
+                    if *held {
+                        p.fix[i] |= bit;
                     }
                 }
                 if g.fix_rotation {

@@ -13,10 +13,8 @@ echo "== cargo build --release"
 cargo build --release
 echo "== cargo test --release"
 cargo test --release 2>&1 | tee target/cargo-test.log
-if [ -x scripts/fmu_tests.sh ]; then
-  echo "== FMU tests"
-  scripts/fmu_tests.sh
-fi
-passed=$(grep -Eo '[0-9]+ passed' target/cargo-test.log | awk '{s+=$1} END {print s+0}')
-failed=$(grep -Eo '[0-9]+ failed' target/cargo-test.log | awk '{s+=$1} END {print s+0}')
-echo "rust tests: $passed passed, $failed failed"
+echo "== FMU tests"
+scripts/fmu_tests.sh 2>&1 | tee target/fmu-test.log
+passed=$(grep -hEo '[0-9]+ passed' target/cargo-test.log target/fmu-test.log | awk '{s+=$1} END {print s+0}')
+failed=$(grep -hEo '[0-9]+ failed' target/cargo-test.log target/fmu-test.log | awk '{s+=$1} END {print s+0}')
+echo "all: $passed passed, $failed failed"

@@ -131,7 +131,7 @@ pub fn markdown(
     for r in rows {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {:.2} | {:.3e} | {:+.2}% | {} |",
+            "| {} | {} | {} | {} | {} | {} | {:.2} | {:.3e} | {} | {} |",
             r.case,
             r.dp,
             r.step,
@@ -140,7 +140,7 @@ pub fn markdown(
             r.steps,
             r.wall_s,
             r.pair_updates_per_s,
-            100.0 * r.error,
+            if r.case == 3 { "-".to_string() } else { format!("{:+.2}%", 100.0 * r.error) },
             r.note
         );
     }

@@ -140,7 +140,11 @@ pub fn markdown(
             r.steps,
             r.wall_s,
             r.pair_updates_per_s,
-            if r.case == 3 { "-".to_string() } else { format!("{:+.2}%", 100.0 * r.error) },
+            if r.case == 3 {
+                "-".to_string()
+            } else {
+                format!("{:+.2}%", 100.0 * r.error)
+            },
             r.note
         );
     }

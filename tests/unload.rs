@@ -186,7 +186,7 @@ fn unload_cycles_child() {
         if first_leak.is_none() && !left.is_empty() {
             first_leak = Some((k, left.join("\n")));
         }
-        if k + 1 == WARMUP {
+        if k + 1 == WARMUP.min(cycles) {
             baseline = rss_kb();
         }
     }

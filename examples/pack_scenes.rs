@@ -5,7 +5,9 @@
 //!     --out target/fmu [--write-xml modelDescription | --check-xml modelDescription] SCENE...
 //! ```
 //! `--check-xml DIR` fails (exit 1) when DIR/<name>.xml differs from the generated XML;
-//! `--write-xml DIR` rewrites them. Without `--lib`/`--out` nothing is packed.
+//! `--write-xml DIR` rewrites them. Without `--lib`/`--out` nothing is packed. The XML files are
+//! the canonical form, without the `generationDateAndTime` that packed FMUs carry (from
+//! `SOURCE_DATE_EPOCH` when set, else the time of packing).
 use mps_solid::fmi::pack::{model_description_xml, pack_fmu};
 use mps_solid::Scene;
 use std::path::PathBuf;

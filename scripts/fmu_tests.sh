@@ -1,19 +1,20 @@
 #!/usr/bin/env bash
-# FMU tests end to end: builds the release cdylib, packs scenes/*.json and tests/data/*.json into
-# target/fmu/*.fmu, checks modelDescription/<scene>.xml against the generated XML, compiles and
-# runs the example C host on a packed FMU, and runs the fmpy tests (tests/python) in .venv.
+# FMU tests end to end: builds the FMU binary (scripts/build-fmu-lib.sh: stripped, glibc 2.17),
+# packs scenes/*.json and tests/data/*.json into target/fmu/*.fmu, checks
+# modelDescription/<scene>.xml against the generated XML, compiles and runs the example C host on
+# a packed FMU, and runs the fmpy tests (tests/python, including the binary's portability) in .venv.
 # Exits non-zero on any failure; the last line is pytest's summary.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 out="$root/target/fmu"
-lib="$root/target/release/libmps_solid.so"
-
-echo "== building the release library"
-cargo build --release --lib --quiet
 
 echo "== python environment"
 scripts/setup_python.sh
+
+echo "== building the FMU binary (glibc 2.17, stripped)"
+lib="$(scripts/build-fmu-lib.sh | tail -n 1)"
+echo "$lib: $(stat -c %s "$lib") bytes"
 
 echo "== packing FMUs into $out"
 rm -rf "$out" && mkdir -p "$out"

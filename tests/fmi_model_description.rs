@@ -198,8 +198,16 @@ fn pack_writes_a_complete_fmu() {
             .unwrap();
         s
     };
+    // The packed XML is the canonical one with the packing date.
+    let packed = String::from_utf8(read("modelDescription.xml")).unwrap();
+    let date = packed
+        .split(" generationDateAndTime=\"")
+        .nth(1)
+        .and_then(|r| r.split('"').next())
+        .expect("generationDateAndTime in the packed modelDescription.xml");
+    assert!(date.len() == 20 && date.ends_with('Z'), "{date}");
     assert_eq!(
-        String::from_utf8(read("modelDescription.xml")).unwrap(),
+        packed.replace(&format!(" generationDateAndTime=\"{date}\""), ""),
         model_description_xml(&scene)
     );
     assert_eq!(

@@ -782,9 +782,88 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
     })
 }
 
+/// Runs `f` on a new OS thread created with `pthread_create` and waits for it to end.
+///
+/// Used to start an instance's worker threads off the host's thread: `std::thread::spawn`
+/// registers a thread-local destructor (std's spawn hooks) on the *calling* thread with
+/// `__cxa_thread_atexit_impl`, and glibc keeps a library loaded while any thread holds one of
+/// its TLS destructors. Spawned from the host's thread (which typically never exits), the
+/// workers pinned every loaded copy of this library: `dlclose` never unmapped it. The thread
+/// made here ends (running its TLS destructors) before this returns.
+#[cfg(unix)]
+pub(crate) fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
+    type Job<'a> = Option<Box<dyn FnOnce() + Send + 'a>>;
+    extern "C" fn start(p: *mut c_void) -> *mut c_void {
+        // SAFETY: p is the `Job` below, which the creating thread keeps alive and does not
+        // touch until pthread_join has returned.
+        let job = unsafe { &mut *(p as *mut Job<'static>) };
+        if let Some(f) = job.take() {
+            // f catches its own panics; this is the last line of defence before the C frame.
+            let _ = catch_unwind(AssertUnwindSafe(f));
+        }
+        std::ptr::null_mut()
+    }
+    let mut out: Option<std::thread::Result<R>> = None;
+    let slot = &mut out;
+    let mut job: Job<'_> = Some(Box::new(move || {
+        *slot = Some(catch_unwind(AssertUnwindSafe(f)));
+    }));
+    // SAFETY: plain pthread calls; the job outlives the thread (joined below before `job` is
+    // dropped), and a failed join of a joinable thread we just created cannot be recovered
+    // from soundly (the thread could still use `job`), hence the abort.
+    unsafe {
+        let mut tid: libc::pthread_t = std::mem::zeroed();
+        let rc = libc::pthread_create(
+            &mut tid,
+            std::ptr::null(),
+            start,
+            &mut job as *mut Job<'_> as *mut c_void,
+        );
+        if rc != 0 {
+            return Err(format!(
+                "cannot start a thread: {}",
+                std::io::Error::from_raw_os_error(rc)
+            ));
+        }
+        if libc::pthread_join(tid, std::ptr::null_mut()) != 0 {
+            std::process::abort();
+        }
+    }
+    drop(job);
+    match out {
+        Some(Ok(r)) => Ok(r),
+        Some(Err(p)) => Err(format!("internal error (panic): {}", panic_message(&*p))),
+        None => Err("internal error: the thread did not run".into()),
+    }
+}
+
+/// Elsewhere: a scoped std thread (no TLS-destructor pinning to avoid).
+#[cfg(not(unix))]
+pub(crate) fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
+    std::thread::scope(|s| s.spawn(f).join())
+        .map_err(|p| format!("internal error (panic): {}", panic_message(&*p)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn run_on_os_thread_returns_the_result_on_another_thread() {
+        let me = std::thread::current().id();
+        let mut touched = false;
+        let r = run_on_os_thread(|| {
+            touched = true;
+            (std::thread::current().id() != me, 42)
+        });
+        assert_eq!(r, Ok((true, 42)));
+        assert!(touched, "the closure may borrow the caller's data");
+        let prev = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|_| {}));
+        let e = run_on_os_thread(|| -> u8 { panic!("boom") });
+        std::panic::set_hook(prev);
+        assert!(e.unwrap_err().contains("boom"));
+    }
     use crate::fmi::instance::NoLogger;
 
     struct Capture(Mutex<Vec<(Status, String)>>);

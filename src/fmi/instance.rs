@@ -233,8 +233,15 @@ pub struct WorkerPool {
 
 #[cfg(feature = "parallel")]
 impl WorkerPool {
-    /// Threads: `MPS_FMI_THREADS` if set, else the available parallelism.
+    /// Threads: `MPS_FMI_THREADS` if set, else the available parallelism. The threads are
+    /// spawned from a short-lived thread of the library's own, never from the host's thread:
+    /// spawning registers a TLS destructor on the spawning thread that would keep the library
+    /// from unloading (see [`super::ffi::run_on_os_thread`]).
     pub fn new(name: &str) -> Result<Self, String> {
+        super::ffi::run_on_os_thread(|| Self::spawn(name))?
+    }
+
+    fn spawn(name: &str) -> Result<Self, String> {
         let n = std::env::var("MPS_FMI_THREADS")
             .ok()
             .and_then(|s| s.parse::<usize>().ok())

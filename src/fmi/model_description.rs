@@ -79,8 +79,65 @@ impl Xml {
     }
 }
 
-/// The modelDescription.xml of a scene's FMU.
+/// Who made the FMU's code (`author` of the modelDescription): Cargo.toml's `authors`.
+fn author() -> String {
+    env!("CARGO_PKG_AUTHORS").replace(':', ", ")
+}
+
+/// A time in seconds since 1970-01-01 UTC as an xs:dateTime in UTC, `YYYY-MM-DDThh:mm:ssZ`.
+pub fn utc_date_time(secs: i64) -> String {
+    let (days, s) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    // Days to a proleptic Gregorian date (H. Hinnant's civil_from_days).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z",
+        s / 3600,
+        s / 60 % 60,
+        s % 60
+    )
+}
+
+/// `generationDateAndTime` of a packed FMU: `source_date_epoch` (the value of the
+/// `SOURCE_DATE_EPOCH` environment variable, seconds since 1970, for reproducible packages)
+/// when given, else the current time.
+pub fn generation_date_and_time(source_date_epoch: Option<&str>) -> Result<String, String> {
+    let secs = match source_date_epoch {
+        Some(v) => v.trim().parse::<i64>().map_err(|_| {
+            format!("SOURCE_DATE_EPOCH = '{v}' is not a number of seconds since 1970-01-01")
+        })?,
+        None => std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_err(|e| format!("the system clock is before 1970: {e}"))?
+            .as_secs() as i64,
+    };
+    Ok(utc_date_time(secs))
+}
+
+/// The modelDescription.xml of a scene's FMU in its canonical form: everything but
+/// `generationDateAndTime`, so that it depends only on the scene and the crate version. This is
+/// what modelDescription/<scene>.xml holds and is checked against.
 pub fn model_description_xml(scene: &Scene) -> String {
+    model_description_xml_dated(scene, None)
+}
+
+/// The modelDescription.xml written into a packed FMU: the canonical XML with
+/// `generationDateAndTime` (from `SOURCE_DATE_EPOCH` when set, else now).
+pub fn packed_model_description_xml(scene: &Scene) -> Result<String, String> {
+    let epoch = std::env::var("SOURCE_DATE_EPOCH").ok();
+    let date = generation_date_and_time(epoch.as_deref())?;
+    Ok(model_description_xml_dated(scene, Some(&date)))
+}
+
+/// The modelDescription.xml of a scene's FMU, with `generationDateAndTime` if `date` is given.
+fn model_description_xml_dated(scene: &Scene, date: Option<&str>) -> String {
     let table = VariableTable::new(scene);
     let mut x = Xml {
         w: Writer::new_with_indent(Vec::new(), b' ', 2),
@@ -94,19 +151,24 @@ pub fn model_description_xml(scene: &Scene) -> String {
         scene.description.clone()
     };
     let tool = format!("mps-solid {}", env!("CARGO_PKG_VERSION"));
-    x.start(
-        "fmiModelDescription",
-        &[
-            ("fmiVersion", "2.0"),
-            ("modelName", &scene.name),
-            ("guid", &guid),
-            ("description", &description),
-            ("generationTool", &tool),
-            ("variableNamingConvention", "structured"),
-            ("numberOfEventIndicators", "0"),
-        ],
-        false,
-    );
+    let author = author();
+    // `version` is that of the model's code (the crate): the scene has no version of its own.
+    let mut root: Vec<(&str, &str)> = vec![
+        ("fmiVersion", "2.0"),
+        ("modelName", &scene.name),
+        ("guid", &guid),
+        ("description", &description),
+        ("author", &author),
+        ("version", env!("CARGO_PKG_VERSION")),
+        ("license", env!("CARGO_PKG_LICENSE")),
+        ("generationTool", &tool),
+    ];
+    if let Some(d) = date {
+        root.push(("generationDateAndTime", d));
+    }
+    root.push(("variableNamingConvention", "structured"));
+    root.push(("numberOfEventIndicators", "0"));
+    x.start("fmiModelDescription", &root, false);
     x.start(
         "CoSimulation",
         &[
@@ -252,6 +314,55 @@ mod tests {
         let g = guid(&a);
         assert_eq!(g.len(), 38);
         assert_eq!(&g[15..16], "8");
+    }
+
+    #[test]
+    fn root_element_carries_the_metadata() {
+        let s = case1_scene(0.05, ElasticModel::Corrected, None);
+        let xml = model_description_xml(&s);
+        let version = format!("version=\"{}\"", env!("CARGO_PKG_VERSION"));
+        for attr in [
+            "author=\"mps-solid developers\"",
+            version.as_str(),
+            "license=\"MIT OR Apache-2.0\"",
+            "generationTool=\"mps-solid ",
+        ] {
+            assert!(xml.contains(attr), "{attr} missing");
+        }
+        assert!(
+            !xml.contains("generationDateAndTime"),
+            "the canonical XML has no date"
+        );
+        let dated = model_description_xml_dated(&s, Some("2001-09-09T01:46:40Z"));
+        assert!(dated.contains(" generationDateAndTime=\"2001-09-09T01:46:40Z\" "));
+        assert_eq!(
+            dated.replace(" generationDateAndTime=\"2001-09-09T01:46:40Z\"", ""),
+            xml,
+            "the date is the only difference"
+        );
+    }
+
+    #[test]
+    fn dates_are_utc_date_times() {
+        assert_eq!(utc_date_time(0), "1970-01-01T00:00:00Z");
+        assert_eq!(utc_date_time(951_782_400), "2000-02-29T00:00:00Z");
+        assert_eq!(utc_date_time(1_000_000_000), "2001-09-09T01:46:40Z");
+        assert_eq!(utc_date_time(4_102_444_799), "2099-12-31T23:59:59Z");
+        assert_eq!(utc_date_time(-1), "1969-12-31T23:59:59Z");
+        assert_eq!(
+            generation_date_and_time(Some("1000000000")).unwrap(),
+            "2001-09-09T01:46:40Z"
+        );
+        let e = generation_date_and_time(Some("yesterday")).unwrap_err();
+        assert!(
+            e.contains("SOURCE_DATE_EPOCH") && e.contains("yesterday"),
+            "{e}"
+        );
+        let now = generation_date_and_time(None).unwrap();
+        assert!(
+            now.len() == 20 && now.ends_with('Z') && now.as_str() > "2024",
+            "{now}"
+        );
     }
 
     #[test]

@@ -78,6 +78,7 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     }
+    let xml = super::model_description::packed_model_description_xml(scene)?;
     let write = || -> zip::result::ZipResult<()> {
         let file = std::fs::File::create(out)?;
         let mut z = ZipWriter::new(file);
@@ -89,12 +90,7 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
             z.write_all(data)?;
             Ok::<(), zip::result::ZipError>(())
         };
-        add(
-            &mut z,
-            "modelDescription.xml",
-            model_description_xml(scene).as_bytes(),
-            0o644,
-        )?;
+        add(&mut z, "modelDescription.xml", xml.as_bytes(), 0o644)?;
         for d in [
             "binaries/",
             "binaries/linux64/",

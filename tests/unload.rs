@@ -260,9 +260,9 @@ fn library_unloads_after_every_instance() {
 }
 
 /// The same with fmi2GetFMUstate / fmi2SetFMUstate / fmi2FreeFMUstate in every cycle.
+/// (Issue 8 item 4: fmi2SetFMUstate ran solver code on rayon's global pool, whose threads never
+/// exit and kept the library mapped.)
 #[test]
-#[ignore = "needs issue 8 item 4: fmi2SetFMUstate still runs solver code on rayon's global pool, \
-            whose threads never exit and keep the library mapped"]
 fn library_unloads_after_fmu_states() {
     run_child(true);
 }

@@ -181,6 +181,16 @@ pub fn model_description_xml(scene: &Scene) -> String {
         if let Some(s) = &start {
             ta.push(("start", s));
         }
+        // Parameters declare the range they accept (scene::limits).
+        let (min, max) = (v.min.map(real), v.max.map(real));
+        if let (VarType::Real, Causality::Parameter) = (v.ty, v.causality) {
+            if let Some(m) = &min {
+                ta.push(("min", m));
+            }
+            if let Some(m) = &max {
+                ta.push(("max", m));
+            }
+        }
         x.start(v.ty.name(), &ta, true);
         x.end("ScalarVariable");
     }

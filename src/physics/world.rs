@@ -35,6 +35,19 @@ pub enum SimError {
     },
     #[error("invalid input: {0}")]
     Invalid(String),
+    #[error("advancing to t = {t_end:e} s would take {steps} solver steps of dt = {dt:e} s, more than solver.max_steps = {limit}; nothing was done (use a shorter advance, a larger particle spacing or a softer/denser material, or raise solver.max_steps)")]
+    TooMuchWork {
+        /// Time the advance was asked to reach (s).
+        t_end: f64,
+        /// Steps it would take.
+        steps: u64,
+        /// solver.max_steps.
+        limit: u64,
+        /// The solver step (s).
+        dt: f64,
+    },
+    #[error("out of memory: {0}")]
+    OutOfMemory(String),
 }
 
 /// A body to create: its material, particle positions and initial velocity.
@@ -138,6 +151,21 @@ where
             fix: vec![],
             n_ref: vec![],
         };
+        let total: usize = bodies.iter().map(|b| b.points.len()).sum();
+        let oom = |e: std::collections::TryReserveError| {
+            SimError::OutOfMemory(format!(
+                "cannot allocate the arrays of {total} particles: {e}"
+            ))
+        };
+        p.x0.try_reserve_exact(total).map_err(oom)?;
+        p.x.try_reserve_exact(total).map_err(oom)?;
+        p.v.try_reserve_exact(total).map_err(oom)?;
+        p.q.try_reserve_exact(total).map_err(oom)?;
+        p.w.try_reserve_exact(total).map_err(oom)?;
+        p.body.try_reserve_exact(total).map_err(oom)?;
+        p.mass.try_reserve_exact(total).map_err(oom)?;
+        p.inertia.try_reserve_exact(total).map_err(oom)?;
+        p.fix.try_reserve_exact(total).map_err(oom)?;
         let volume = l0.powi(D as i32);
         for (b, body) in bodies.iter().enumerate() {
             let m = body.material.density * volume;

@@ -295,9 +295,12 @@ impl VariableTable {
             Parameter,
             Fixed,
             Some("s"),
-            "Fixed solver time step; 0 = automatic (safety factor times the stability limit). \
-             Each doStep is split into equal sub-steps no longer than this and lands exactly on t + h"
-                .into(),
+            format!(
+                "Fixed solver time step, in {}; 0 = automatic (safety factor times the stability \
+                 limit). Each doStep is split into equal sub-steps no longer than this and lands \
+                 exactly on t + h",
+                limits::SOLVER_DT.describe()
+            ),
             Some(scene.solver.dt.unwrap_or(0.0)),
             Quantity::SolverDt,
         );
@@ -318,9 +321,11 @@ impl VariableTable {
             Parameter,
             Fixed,
             None,
-            "Critical bond strain eps_max of Eq. (42): a bond stretched beyond it breaks for good; \
-             0 = no fracture"
-                .into(),
+            format!(
+                "Critical bond strain eps_max of Eq. (42), in {}: a bond stretched beyond it breaks \
+                 for good; 0 = no fracture",
+                limits::FRACTURE_STRAIN.describe()
+            ),
             Some(scene.solver.fracture_strain.unwrap_or(0.0)),
             Quantity::FractureStrain,
         );

@@ -7,8 +7,10 @@ use mps_solid::{Scene, Simulation};
 use std::time::{Duration, Instant};
 
 fn small2d() -> Scene {
-    Scene::load(&std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/small2d.json"))
-        .unwrap()
+    Scene::load(
+        &std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/small2d.json"),
+    )
+    .unwrap()
 }
 
 /// Runs f and checks it returns within `limit` (the refusals must not step at all).

@@ -35,7 +35,7 @@ pub enum SimError {
     },
     #[error("invalid input: {0}")]
     Invalid(String),
-    #[error("advancing to t = {t_end:e} s would take {steps} solver steps of dt = {dt:e} s, more than solver.max_steps = {limit}; nothing was done (use a shorter advance, a larger particle spacing or a softer/denser material, or raise solver.max_steps)")]
+    #[error("advancing to t = {t_end:e} s would take {steps} solver steps of dt = {dt:.4e} s, more than solver.max_steps = {limit}; nothing was done (use a shorter advance, a larger particle spacing or a softer/denser material, or raise solver.max_steps)")]
     TooMuchWork {
         /// Time the advance was asked to reach (s).
         t_end: f64,

@@ -2,6 +2,7 @@
 //! binaries/linux64/<modelIdentifier>.so, resources/scene.json, documentation/index.html.
 use super::model_description::guid;
 use super::variables::VariableTable;
+use crate::scene::limits::num;
 use crate::scene::Scene;
 use std::io::Write;
 use std::path::Path;
@@ -44,10 +45,10 @@ pub fn documentation_html(scene: &Scene) -> String {
          from them then. The FMU state (fmi2GetFMUstate, serialisation) is portable data.</p>\n",
         scene.end_time, scene.output_interval
     ));
-    s.push_str("<h2>Variables</h2>\n<table>\n<tr><th>#</th><th>Name</th><th>Value reference</th><th>Type</th><th>Causality</th><th>Variability</th><th>Unit</th><th>Start</th><th>Description</th></tr>\n");
+    s.push_str("<h2>Variables</h2>\n<table>\n<tr><th>#</th><th>Name</th><th>Value reference</th><th>Type</th><th>Causality</th><th>Variability</th><th>Unit</th><th>Start</th><th>Range</th><th>Description</th></tr>\n");
     for (i, v) in table.vars.iter().enumerate() {
         s.push_str(&format!(
-            "<tr><td>{}</td><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             i + 1,
             html(&v.name),
             v.value_reference,
@@ -56,6 +57,10 @@ pub fn documentation_html(scene: &Scene) -> String {
             v.variability.name(),
             v.unit.unwrap_or("-"),
             v.start.map(|x| format!("{x:?}")).unwrap_or_else(|| "calculated".into()),
+            match (v.min, v.max) {
+                (Some(lo), Some(hi)) => format!("[{}, {}]", num(lo), num(hi)),
+                _ => "-".into(),
+            },
             html(&v.description)
         ));
     }

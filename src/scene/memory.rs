@@ -64,7 +64,7 @@ pub fn estimate(scene: &Scene) -> MemoryEstimate {
     let particles = scene.particle_bound();
     let nb = lattice_neighbours(scene.dimension, scene.solver.re_factor);
     let per = BASE_BYTES[d] + nb * BOND_BYTES[d];
-    let bytes = (particles as f64 * per as f64 + FIXED_BYTES as f64).min(u64::MAX as f64) as u64;
+    let bytes = (particles * per as f64 + FIXED_BYTES as f64).min(u64::MAX as f64) as u64;
     MemoryEstimate {
         particles: particles.min(u64::MAX as f64) as u64,
         bonds_per_particle: nb,

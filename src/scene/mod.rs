@@ -187,18 +187,20 @@ impl Scene {
     }
     /// Reads a .json or .toml file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| err("<file>", format!("cannot read {}: {e}", path.display())))?;
-        if text.len() > MAX_SCENE_BYTES {
+        let size = std::fs::metadata(path)
+            .map_err(|e| err("<file>", format!("cannot read {}: {e}", path.display())))?
+            .len();
+        if size > MAX_SCENE_BYTES {
             return Err(err(
                 "<file>",
                 format!(
-                    "{} is {} bytes long, more than a scene file may be ({MAX_SCENE_BYTES})",
-                    path.display(),
-                    text.len()
+                    "{} is {size} bytes long, more than a scene file may be ({MAX_SCENE_BYTES})",
+                    path.display()
                 ),
             ));
         }
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| err("<file>", format!("cannot read {}: {e}", path.display())))?;
         match path.extension().and_then(|e| e.to_str()) {
             Some("toml") => Scene::from_toml(&text),
             _ => Scene::from_json(&text),
@@ -445,7 +447,7 @@ impl Scene {
 
 /// Longest scene file read (bytes): a scene is a few kB, this keeps a wrong file from being
 /// read whole.
-const MAX_SCENE_BYTES: usize = 64 << 20;
+const MAX_SCENE_BYTES: u64 = 64 << 20;
 
 /// The field path of body k in messages.
 pub(crate) fn body_field(k: usize, b: &Body) -> String {

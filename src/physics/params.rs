@@ -1,8 +1,8 @@
 //! Plain parameter structs of the solver (serde, units in the doc comments).
 use serde::{Deserialize, Serialize};
 
-/// Default of `SolverOptions::max_particles`: 4 to 6.5 GB in 3D at re = 2.1 dp (measured 2.0 to
-/// 2.6 kB per particle; scene::memory has the estimate), 1 to 2.4 GB in 2D.
+/// Default of `SolverOptions::max_particles`: about 4 GB in 3D and 1.6 GB in 2D at re = 2.1 dp
+/// (measured 1977 and 776 bytes per particle; scene::memory has the estimate).
 pub const DEFAULT_MAX_PARTICLES: usize = 2_000_000;
 
 /// Default of `SolverOptions::max_steps`: 2e7 steps of a 10,000-particle scene take about an

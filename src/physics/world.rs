@@ -1,7 +1,7 @@
 //! The simulated world: bodies of particles, bonds, boundary groups, loads and gravity, and the
 //! order of a step (integrate with the forces of the current state, then evaluate the forces of
 //! the new state, so reactions and energies always describe the current time).
-use super::bonds::{lattice_number_density, Bonds};
+use super::bonds::{lattice_neighbours, lattice_number_density, Bonds};
 use super::boundary::{BoundaryGroup, GravityLaw, GroupMotion, LoadRegion};
 use super::contact::{Contact, Overlap};
 use super::dim::{Dim, Space, Vect};
@@ -185,7 +185,8 @@ where
         if n == 0 {
             return Err(SimError::Invalid("the scene has no particles".into()));
         }
-        let bonds = Bonds::build(&p.x0, &p.body, re);
+        let bonds = Bonds::try_build(&p.x0, &p.body, re, lattice_neighbours::<D>(l0, re))
+            .map_err(|e| SimError::OutOfMemory(format!("cannot allocate the bonds: {e}")))?;
         p.n_ref = (0..n)
             .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
             .collect();

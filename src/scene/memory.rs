@@ -4,15 +4,14 @@
 use super::limits::num;
 use super::{err, Scene, SceneError};
 
-/// Bytes per particle besides its bonds (2D, 3D) and per stored (directed) bond: an upper
-/// envelope of the peak of `Simulation::new` measured with a counting allocator
-/// (tests/limits_memory.rs; `CALIBRATE=1` prints the figures). Measured at re = 1.5, 2.1 and
-/// 3 dp, 8,000 to 250,000 particles: 2D 770-1800 B per particle (8-28 bonds), 3D 1500-2600 B
-/// (18-32 bonds) and 6500-7600 B (122 bonds); the spread at one size comes from the doubling
-/// of growing arrays. Included: particle arrays, forces, the operator's per-particle tensors
-/// and scratch, contact data, bond lists and the build's temporary lists.
-const BASE_BYTES: [u64; 2] = [600, 1200];
-const BOND_BYTES: [u64; 2] = [48, 64];
+/// Bytes per particle besides its bonds (2D, 3D) and per stored (directed) bond: the peak of
+/// `Simulation::new` measured with a counting allocator (tests/limits_memory.rs; `CALIBRATE=1`
+/// prints the figures) is exactly linear in the bonds per particle: 440 + 28 nb bytes in 2D,
+/// 825 + 36 nb in 3D (nbr 4 + r0 8 D + w0 8 bytes per bond), at re = 1.5, 2.1 and 3 dp and
+/// 8,000 to 250,000 particles (776 B per particle in 2D and 1977 B in 3D at re = 2.1 dp). The
+/// constants add about 15 % for what grows during a run (contact pair lists) and the allocator.
+const BASE_BYTES: [u64; 2] = [512, 960];
+const BOND_BYTES: [u64; 2] = [32, 40];
 /// Fixed cost of a world whatever its size (bytes).
 const FIXED_BYTES: u64 = 1 << 20;
 

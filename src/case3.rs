@@ -261,6 +261,7 @@ pub fn case3_report(
 ) -> Result<Case3Report, String> {
     let t0 = std::time::Instant::now();
     let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
+    sim.check_work(end_time).map_err(|e| e.to_string())?;
     let mut r = Case3Report {
         scene: scene.name.clone(),
         fractured_surfaces: scene.solver.contact.fractured_surfaces,

@@ -1,6 +1,7 @@
 //! Runs a scene to its end time: probe time series, timing figures, measured frequency and peak
 //! deflection. Shared by the command line, the case reports and the benchmark.
 use crate::analysis::{dominant_frequency, peak};
+use crate::scene::limits::num;
 use crate::scene::{axis_index, Scene};
 use crate::sim::Simulation;
 use serde::Serialize;
@@ -42,16 +43,92 @@ pub struct RunResult {
     pub kinetic_energy: f64,
     pub strain_energy: f64,
     /// Frequency of the analysis probe (Hz), when the scene asks for it.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub frequency_hz: Option<f64>,
     /// Largest displacement component of the analysis probe over the run (m).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_m: Option<f64>,
     pub series: Series,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
 }
 
-/// Runs a scene; `on_sample(time)` is called after every output sample (progress bars).
+/// Refuses a built scene with nothing to simulate: no particle that is free to move and bonded
+/// (a fully clamped body, single-particle bodies), whose stable step is infinite.
+pub fn check_free_particles(sim: &Simulation) -> Result<(), String> {
+    let crit = sim.critical_dt();
+    if !crit.is_finite() {
+        return Err(format!(
+            "no free particle: every particle of the {} is held by a boundary group or has no \
+             bond, so nothing can move elastically and the stable step is undefined (critical \
+             dt = {}); free part of a body or give it more than one particle",
+            if sim.particles() == 1 {
+                "scene (a single particle)"
+            } else {
+                "scene"
+            },
+            num(crit)
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a result holding a non-finite number (JSON would print it as null): the name of the
+/// first such value and its time.
+pub fn check_finite(r: &RunResult) -> Result<(), String> {
+    let bad = |what: String, v: f64| -> Result<(), String> {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(format!(
+                "non-finite result: {what} = {} at t = {} s (scene '{}')",
+                num(v),
+                num(r.end_time),
+                r.scene
+            ))
+        }
+    };
+    bad("critical_dt".into(), r.critical_dt)?;
+    bad("dt".into(), r.dt)?;
+    bad("kinetic_energy".into(), r.kinetic_energy)?;
+    bad("strain_energy".into(), r.strain_energy)?;
+    for (name, u) in &r.final_displacement {
+        for (k, c) in u.iter().enumerate() {
+            bad(format!("displacement of probe '{name}' [{k}]"), *c)?;
+        }
+    }
+    for (name, f) in &r.final_reaction {
+        for (k, c) in f.iter().enumerate() {
+            bad(format!("reaction of group '{name}' [{k}]"), *c)?;
+        }
+    }
+    if let Some(f) = r.frequency_hz {
+        bad("frequency_hz".into(), f)?;
+    }
+    if let Some(p) = r.peak_m {
+        bad("peak_m".into(), p)?;
+    }
+    for (k, series) in r.series.displacement.iter().enumerate() {
+        for (n, u) in series.iter().enumerate() {
+            if u.iter().any(|c| !c.is_finite()) {
+                return Err(format!(
+                    "non-finite result: displacement of probe '{}' at t = {} s",
+                    r.series.probes[k],
+                    num(r.series.time[n])
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Runs a scene; `on_sample(time)` is called after every output sample (progress bars). Refused
+/// before the first step: a scene without a free particle, and a run that would take more than
+/// solver.max_steps steps. A run that produces a non-finite number is an error.
 pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunResult, String> {
     let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
+    check_free_particles(&sim)?;
+    sim.check_work(scene.end_time).map_err(|e| e.to_string())?;
     let np = scene.probes.len();
     let mut series = Series {
         probes: scene.probes.iter().map(|p| p.name.clone()).collect(),
@@ -102,7 +179,7 @@ pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunRes
         peak_m = Some(peak(&u));
     }
     let steps = sim.steps();
-    Ok(RunResult {
+    let r = RunResult {
         scene: scene.name.clone(),
         dimension: scene.dimension,
         particles: sim.particles(),
@@ -128,7 +205,14 @@ pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunRes
         peak_m,
         series,
         error,
-    })
+    };
+    if let Err(e) = check_finite(&r) {
+        return Err(match &r.error {
+            Some(stop) => format!("the run stopped early: {stop}; {e}"),
+            None => e,
+        });
+    }
+    Ok(r)
 }
 
 /// The probe series as CSV: `time,<probe>.ux,<probe>.uy[,<probe>.uz]...`.

@@ -4,6 +4,7 @@ use crate::physics::boundary::{GravityLaw, GroupMotion};
 use crate::physics::dim::{from3, to3};
 use crate::physics::world::WorldState;
 use crate::physics::SimError;
+use crate::scene::limits::num;
 use crate::scene::{Model, Scene, SceneError};
 use serde::{Deserialize, Serialize};
 
@@ -42,13 +43,32 @@ macro_rules! with {
 }
 
 impl Simulation {
+    /// A fixed solver.dt below this fraction of the stable step is refused: it would take a
+    /// million steps where one does.
+    pub const MIN_DT_FRACTION: f64 = 1e-6;
+
     /// Validates the scene and builds its world.
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
         scene.validate()?;
-        Ok(match scene.dimension {
+        let sim = match scene.dimension {
             2 => Simulation::D2(Box::new(Model::<2>::build(scene)?)),
             _ => Simulation::D3(Box::new(Model::<3>::build(scene)?)),
-        })
+        };
+        let crit = sim.critical_dt();
+        if let Some(dt) = scene.solver.dt {
+            if crit.is_finite() && dt < Self::MIN_DT_FRACTION * crit {
+                return Err(SceneError {
+                    field: "solver.dt".into(),
+                    message: format!(
+                        "{} s is below {} x the stable step {} s of this scene",
+                        num(dt),
+                        num(Self::MIN_DT_FRACTION),
+                        num(crit)
+                    ),
+                });
+            }
+        }
+        Ok(sim)
     }
     pub fn dimension(&self) -> usize {
         with!(self, _m => if matches!(self, Simulation::D2(_)) { 2 } else { 3 })
@@ -76,8 +96,45 @@ impl Simulation {
     pub fn max_dt(&self) -> f64 {
         with!(self, m => m.world.max_dt())
     }
-    /// Advances to t_end, landing on it exactly; returns the steps taken.
+    /// The work guard of the scene: most solver steps one advance may take.
+    pub fn max_steps(&self) -> u64 {
+        with!(self, m => m.world.options.max_steps)
+    }
+    /// Solver steps an advance from the current time to t_end takes: the remaining time over
+    /// the largest step, rounded up as `World::advance_to` does (0 when t_end is not ahead or
+    /// not finite; saturates at u64::MAX).
+    pub fn estimate_steps(&self, t_end: f64) -> u64 {
+        let h = t_end - self.time();
+        if !(h > 0.0 && h.is_finite()) {
+            return 0;
+        }
+        let n = ((h / self.max_dt()) * (1.0 - 1e-12)).ceil().max(1.0);
+        // `as` saturates: NaN (dt = inf over h = inf cannot occur here) gives 0, huge gives MAX.
+        if n.is_nan() {
+            u64::MAX
+        } else {
+            n as u64
+        }
+    }
+    /// Ok when advancing to t_end takes at most solver.max_steps steps, else
+    /// `SimError::TooMuchWork` (nothing is changed).
+    pub fn check_work(&self, t_end: f64) -> Result<(), SimError> {
+        let steps = self.estimate_steps(t_end);
+        let limit = self.max_steps();
+        if steps > limit {
+            return Err(SimError::TooMuchWork {
+                t_end,
+                steps,
+                limit,
+                dt: self.max_dt(),
+            });
+        }
+        Ok(())
+    }
+    /// Advances to t_end, landing on it exactly; returns the steps taken. Refused before any
+    /// step when it would take more than solver.max_steps steps (`SimError::TooMuchWork`).
     pub fn advance_to(&mut self, t_end: f64) -> Result<u64, SimError> {
+        self.check_work(t_end)?;
         with!(self, m => m.world.advance_to(t_end))
     }
     /// Replaces the gravity law by `start + rate (t - t0)` (m/s^2, m/s^3, s; simulation time).

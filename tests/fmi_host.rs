@@ -851,8 +851,14 @@ fn nan_and_infinite_inputs_are_rejected() {
         u.vr("beam.density"),
     );
     i.expect_err(i.set(&[rho], &[f64::NAN]), "values must be finite");
-    i.expect_err(i.set(&[rho], &[-1.0]), "positive");
-    i.expect_err(i.set(&[u.vr("beam.poisson")], &[0.5]), "Poisson");
+    i.expect_err(
+        i.set(&[rho], &[-1.0]),
+        "material.density: must be in [0.001, 100000] kg/m3",
+    );
+    i.expect_err(
+        i.set(&[u.vr("beam.poisson")], &[0.5]),
+        "material.poisson: must be in [-0.999, 0.499]",
+    );
     i.init(None);
     assert_eq!(i.real(&[rho])[0], 1000.0);
     for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {

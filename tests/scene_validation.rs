@@ -135,6 +135,80 @@ fn each_bad_field_is_named() {
             Box::new(|v| v["name"] = "1 bad name".into()),
             "name",
         ),
+        // Issue 8, item 1: absurd values that made a run never end are refused by range.
+        // (serde_json parses 1e-30 as 9.999999999999999e-31, so the value itself is not
+        // compared.)
+        (
+            "dt = 1e-30",
+            Box::new(|v| v["solver"]["dt"] = 1e-30.into()),
+            "solver.dt: must be in [1e-12, 1000] s, got ",
+        ),
+        (
+            "density 1e-30",
+            Box::new(|v| v["bodies"][0]["material"]["density"] = 1e-30.into()),
+            "material.density: must be in [0.001, 100000] kg/m3, got ",
+        ),
+        (
+            "young 1e30",
+            Box::new(|v| v["bodies"][0]["material"]["young"] = 1e30.into()),
+            "material.young: must be in [1, 1e13] Pa, got ",
+        ),
+        (
+            "poisson just below 0.5",
+            Box::new(|v| v["bodies"][0]["material"]["poisson"] = 0.49999999999999994.into()),
+            "material.poisson: must be in [-0.999, 0.499], got 0.49999999999999994",
+        ),
+        (
+            "safety 1e-300",
+            Box::new(|v| v["solver"]["safety"] = 1e-300.into()),
+            "solver.safety: must be in [0.01, 1], got ",
+        ),
+        (
+            "output_interval 1e-9",
+            Box::new(|v| v["output_interval"] = 1e-9.into()),
+            "output_interval",
+        ),
+        (
+            "end_time 1e30",
+            Box::new(|v| v["end_time"] = 1e30.into()),
+            "end_time: must be in [1e-9, 1e9] s, got ",
+        ),
+        (
+            "damping 1e30",
+            Box::new(|v| v["solver"]["damping"] = 1e30.into()),
+            "solver.damping",
+        ),
+        (
+            "fracture strain 1e-300",
+            Box::new(|v| v["solver"]["fracture_strain"] = 1e-300.into()),
+            "solver.fracture_strain",
+        ),
+        (
+            "max_steps 0",
+            Box::new(|v| v["solver"]["max_steps"] = 0.into()),
+            "solver.max_steps",
+        ),
+        // Item 16: text that an FMU's modelDescription.xml cannot hold.
+        (
+            "NUL in a body name",
+            Box::new(|v| v["bodies"][0]["name"] = "be\u{0}am".into()),
+            "bodies[0].name: contains the control character U+0000",
+        ),
+        (
+            "U+0001 in the description",
+            Box::new(|v| v["description"] = "a\u{1}b".into()),
+            "description: contains the control character U+0001",
+        ),
+        (
+            "escape in a probe name",
+            Box::new(|v| v["probes"][0]["name"] = "tip\u{1b}".into()),
+            "probes[0].name",
+        ),
+        (
+            "line feed in a boundary name",
+            Box::new(|v| v["boundaries"][0]["name"] = "a\nb".into()),
+            "boundaries[0].name",
+        ),
     ];
     for (what, edit, needle) in cases {
         let mut v = base();
@@ -157,6 +231,56 @@ fn malformed_text_is_an_error_not_a_panic() {
         .unwrap_err()
         .to_string()
         .contains("cannot read"));
+}
+
+#[test]
+fn a_fixed_dt_far_below_the_stable_step_is_refused_when_built() {
+    let mut v = base();
+    v["solver"]["dt"] = 1e-11.into();
+    let e = error_of(v);
+    assert!(
+        e.contains("solver.dt") && e.contains("below 1e-6 x the stable step"),
+        "{e}"
+    );
+}
+
+#[test]
+fn line_breaks_and_tabs_are_fine_in_the_description() {
+    let mut v = base();
+    v["description"] = "line one\n\tline two\r\n".into();
+    Scene::from_json(&v.to_string()).unwrap();
+}
+
+#[test]
+fn trailing_data_after_the_scene_is_refused() {
+    let text = base().to_string();
+    Scene::from_json(&format!("{text} \n\t")).expect("whitespace is fine");
+    for bad in [
+        format!("{text}xyz"),
+        format!("{text}{text}"),
+        format!("{text}\n}}"),
+    ] {
+        let e = Scene::from_json(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("trailing characters") && e.contains("only whitespace may follow"),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn numbers_in_messages_are_short() {
+    for (path, x) in [("density", 1e-300), ("young", 1e300), ("density", 5e-324)] {
+        let mut v = base();
+        v["bodies"][0]["material"][path] = x.into();
+        let e = error_of(v);
+        assert!(e.len() < 200, "{} characters: {e}", e.len());
+        assert!(!e.contains("0000000000"), "{e}");
+    }
+    let mut v = base();
+    v["particle_spacing"] = 1e-300.into();
+    let e = error_of(v);
+    assert!(e.len() < 300 && !e.contains("0000000000"), "{e}");
 }
 
 #[test]

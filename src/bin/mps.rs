@@ -6,6 +6,7 @@ use mps_solid::cases::{case1_scene, case2_scene, Support};
 use mps_solid::physics::ElasticModel;
 use mps_solid::report;
 use mps_solid::runner::{run_scene, series_csv};
+use mps_solid::scene::limits::num;
 use mps_solid::Scene;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -136,21 +137,32 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
     match cli.cmd {
         Cmd::Run { scene, out, json } => {
             let sc = Scene::load(&scene).map_err(|e| e.to_string())?;
-            let pb = progress(sc.end_time, &sc.name);
-            let r = run_scene(&sc, |t| pb.set_position((t * 1e6) as u64))?;
-            pb.finish_and_clear();
+            // The output files are opened before the run, so an unusable --out fails now.
             std::fs::create_dir_all(&out)
-                .map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+                .map_err(|e| format!("cannot create the directory {}: {e}", out.display()))?;
             let csv = out.join("probes.csv");
-            std::fs::write(&csv, series_csv(&r.series, r.dimension))
+            let summary_path = out.join("summary.json");
+            let open = |p: &std::path::Path| {
+                std::fs::File::create(p).map_err(|e| format!("cannot write {}: {e}", p.display()))
+            };
+            let (mut csv_file, mut summary_file) = (open(&csv)?, open(&summary_path)?);
+            let pb = progress(sc.end_time, &sc.name);
+            let r = run_scene(&sc, |t| pb.set_position((t * 1e6) as u64));
+            pb.finish_and_clear();
+            let r = r.inspect_err(|_| {
+                // Leave no empty output files behind a refused run.
+                let _ = std::fs::remove_file(&csv);
+                let _ = std::fs::remove_file(&summary_path);
+            })?;
+            use std::io::Write;
+            csv_file
+                .write_all(series_csv(&r.series, r.dimension).as_bytes())
                 .map_err(|e| format!("cannot write {}: {e}", csv.display()))?;
             let mut summary = serde_json::to_value(&r).expect("serialisable");
             summary.as_object_mut().expect("object").remove("series");
-            std::fs::write(
-                out.join("summary.json"),
-                serde_json::to_string_pretty(&summary).unwrap(),
-            )
-            .map_err(|e| e.to_string())?;
+            summary_file
+                .write_all(serde_json::to_string_pretty(&summary).unwrap().as_bytes())
+                .map_err(|e| format!("cannot write {}: {e}", summary_path.display()))?;
             if json {
                 println!("{}", serde_json::to_string(&r).unwrap());
             } else {
@@ -287,6 +299,18 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             json,
         } => {
             use mps_solid::case3::{case3_report, case3_scene, case3_text};
+            if !(end.is_finite() && end > 0.0) {
+                return Err(format!(
+                    "--end must be a positive finite time (s), got {}",
+                    num(end)
+                ));
+            }
+            if !(dp.is_finite() && dp > 0.0) {
+                return Err(format!(
+                    "--dp must be a positive finite spacing (m), got {}",
+                    num(dp)
+                ));
+            }
             let variants: Vec<bool> = match fractured_contact.as_deref() {
                 Some("on") => vec![true],
                 Some("off") => vec![false],
@@ -294,7 +318,11 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             };
             let mut reports = Vec::new();
             for fc in variants {
-                let scene = case3_scene(dp, fc, ElasticModel::Corrected);
+                let mut scene = case3_scene(dp, fc, ElasticModel::Corrected);
+                scene.end_time = end;
+                scene
+                    .validate()
+                    .map_err(|e| format!("{e} (from --end/--dp)"))?;
                 let pb = progress(end, &scene.name);
                 let mut snaps = Vec::new();
                 let mut next_snap = 0.0;
@@ -334,16 +362,23 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             let lib = match lib {
                 Some(l) => l,
                 None => std::env::current_exe()
-                    .map_err(|e| e.to_string())?
+                    .map_err(|e| format!("cannot locate this program (for --lib): {e}"))?
                     .with_file_name("libmps_solid.so"),
             };
             let out = out.unwrap_or_else(|| PathBuf::from(format!("{}.fmu", sc.name)));
+            if out == scene || mps_solid::fmi::pack::same_file(&out, &scene) {
+                return Err(format!(
+                    "--out {} is the scene file itself; choose another output",
+                    out.display()
+                ));
+            }
             mps_solid::fmi::pack::pack_fmu(&sc, &lib, &out)?;
             println!("wrote {}", out.display());
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Scenes { dir } => {
-            std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+            std::fs::create_dir_all(&dir)
+                .map_err(|e| format!("cannot create the directory {}: {e}", dir.display()))?;
             for sc in paper_scenes() {
                 let path = dir.join(format!("{}.json", sc.name));
                 std::fs::write(&path, sc.to_json() + "\n")

@@ -4,6 +4,7 @@
 //! ([`FmiError::status`]).
 use super::model_description::{guid, LOG_CATEGORIES};
 use super::variables::{Causality, Quantity, VarType, VariableTable};
+use crate::scene::limits::num;
 use crate::scene::Scene;
 use crate::sim::{SimState, Simulation};
 use serde::{Deserialize, Serialize};
@@ -402,9 +403,6 @@ pub struct Instance {
     logging_on: bool,
     categories: [bool; LOG_CATEGORIES.len()],
 }
-
-/// Most solver steps one doStep may take: a larger request is refused before any work.
-const MAX_STEPS_PER_DO_STEP: u64 = 20_000_000;
 
 /// Relative tolerance of time comparisons.
 fn time_tol(t: f64) -> f64 {
@@ -931,8 +929,9 @@ impl Instance {
                 let mut probe = self.params.clone();
                 VariableTable::set_parameter(&mut probe, v.quantity, x).map_err(|m| {
                     FmiError::Invalid(format!(
-                        "'{}' cannot be set to {x}: {m} (nothing was set)",
-                        v.name
+                        "'{}' cannot be set to {}: {m} (nothing was set)",
+                        v.name,
+                        num(x)
                     ))
                 })?;
             }
@@ -1115,15 +1114,14 @@ impl Instance {
             .sim
             .as_mut()
             .ok_or_else(|| FmiError::Fatal("no model built".into()))?;
-        let steps = ((sim_end - sim.time()) / sim.max_dt()).ceil();
-        let limit = MAX_STEPS_PER_DO_STEP;
-        if steps.is_nan() || steps > limit as f64 {
-            return Err(FmiError::Invalid(format!(
-                "doStep(t = {t:e}, h = {h:e}) would take {steps:e} solver steps of {:e} s, more than \
-                 the limit of {limit:e}: use shorter communication steps (nothing was done)",
-                sim.max_dt()
-            )));
-        }
+        // Refused before any work, the instance unchanged (not an Error state).
+        sim.check_work(sim_end).map_err(|e| {
+            FmiError::Invalid(format!(
+                "doStep(t = {}, h = {}) refused: {e}; use shorter communication steps",
+                num(t),
+                num(h)
+            ))
+        })?;
         Self::apply_inputs(sim, &self.inputs, sim_end - sim.time());
         let res = self.pool.install(|| sim.advance_to(sim_end));
         let res = match res {

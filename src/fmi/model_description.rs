@@ -243,6 +243,20 @@ fn model_description_xml_dated(scene: &Scene, date: Option<&str>) -> String {
         if let Some(s) = &start {
             ta.push(("start", s));
         }
+        // Parameters declare the range they accept (scene::limits).
+        let int = |x: f64| (x as i64).to_string();
+        let (min, max) = match v.ty {
+            VarType::Integer => (v.min.map(int), v.max.map(int)),
+            _ => (v.min.map(real), v.max.map(real)),
+        };
+        if v.causality == Causality::Parameter {
+            if let Some(m) = &min {
+                ta.push(("min", m));
+            }
+            if let Some(m) = &max {
+                ta.push(("max", m));
+            }
+        }
         x.start(v.ty.name(), &ta, true);
         x.end("ScalarVariable");
     }

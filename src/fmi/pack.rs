@@ -2,6 +2,7 @@
 //! binaries/linux64/<modelIdentifier>.so, resources/scene.json, documentation/index.html.
 use super::model_description::guid;
 use super::variables::VariableTable;
+use crate::scene::limits::num;
 use crate::scene::Scene;
 use std::io::Write;
 use std::path::Path;
@@ -44,10 +45,10 @@ pub fn documentation_html(scene: &Scene) -> String {
          from them then. The FMU state (fmi2GetFMUstate, serialisation) is portable data.</p>\n",
         scene.end_time, scene.output_interval
     ));
-    s.push_str("<h2>Variables</h2>\n<table>\n<tr><th>#</th><th>Name</th><th>Value reference</th><th>Type</th><th>Causality</th><th>Variability</th><th>Unit</th><th>Start</th><th>Description</th></tr>\n");
+    s.push_str("<h2>Variables</h2>\n<table>\n<tr><th>#</th><th>Name</th><th>Value reference</th><th>Type</th><th>Causality</th><th>Variability</th><th>Unit</th><th>Start</th><th>Range</th><th>Description</th></tr>\n");
     for (i, v) in table.vars.iter().enumerate() {
         s.push_str(&format!(
-            "<tr><td>{}</td><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             i + 1,
             html(&v.name),
             v.value_reference,
@@ -56,6 +57,10 @@ pub fn documentation_html(scene: &Scene) -> String {
             v.variability.name(),
             v.unit.unwrap_or("-"),
             v.start.map(|x| format!("{x:?}")).unwrap_or_else(|| "calculated".into()),
+            match (v.min, v.max) {
+                (Some(lo), Some(hi)) => format!("[{}, {}]", num(lo), num(hi)),
+                _ => "-".into(),
+            },
             html(&v.description)
         ));
     }
@@ -63,62 +68,193 @@ pub fn documentation_html(scene: &Scene) -> String {
     s
 }
 
+/// Whether two paths name the same file (same device and inode; false when either does not
+/// exist).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+        _ => false,
+    }
+}
+
+/// Reads little-endian integers of an ELF image, None past its end.
+struct Elf<'a>(&'a [u8]);
+
+impl Elf<'_> {
+    fn bytes<const N: usize>(&self, at: u64) -> Option<[u8; N]> {
+        let at = usize::try_from(at).ok()?;
+        self.0.get(at..at.checked_add(N)?)?.try_into().ok()
+    }
+    fn u16(&self, at: u64) -> Option<u64> {
+        self.bytes::<2>(at).map(|b| u16::from_le_bytes(b) as u64)
+    }
+    fn u32(&self, at: u64) -> Option<u64> {
+        self.bytes::<4>(at).map(|b| u32::from_le_bytes(b) as u64)
+    }
+    fn u64(&self, at: u64) -> Option<u64> {
+        self.bytes::<8>(at).map(u64::from_le_bytes)
+    }
+    /// The NUL-terminated name at `at`.
+    fn name(&self, at: u64) -> Option<&[u8]> {
+        let rest = self.0.get(usize::try_from(at).ok()?..)?;
+        Some(&rest[..rest.iter().position(|&b| b == 0)?])
+    }
+}
+
+/// Checks that `lib` is a 64-bit little-endian ELF shared object whose dynamic symbol table
+/// defines the function `symbol` (read from the section headers, without loading it).
+pub fn check_shared_library(lib: &[u8], symbol: &str) -> Result<(), String> {
+    let e = Elf(lib);
+    if lib.len() < 64 || &lib[..4] != b"\x7fELF" {
+        return Err("is not an ELF shared library (no ELF header)".into());
+    }
+    if lib[4] != 2 || lib[5] != 1 {
+        return Err("is not an ELF shared library for linux64 (not 64-bit little-endian)".into());
+    }
+    const ET_DYN: u64 = 3;
+    if e.u16(16) != Some(ET_DYN) {
+        return Err("is not an ELF shared library (an ELF file, but not ET_DYN)".into());
+    }
+    let bad = || "has a truncated or malformed ELF section table".to_string();
+    let shoff = e.u64(0x28).ok_or_else(bad)?;
+    let shentsize = e.u16(0x3a).ok_or_else(bad)?;
+    let shnum = e.u16(0x3c).ok_or_else(bad)?;
+    if shoff == 0 || shnum == 0 || shentsize < 64 {
+        return Err("has no section headers, so its dynamic symbols cannot be read".into());
+    }
+    const SHT_DYNSYM: u64 = 11;
+    for k in 0..shnum {
+        let sh = shoff + k * shentsize;
+        if e.u32(sh + 4).ok_or_else(bad)? != SHT_DYNSYM {
+            continue;
+        }
+        let (off, size) = (
+            e.u64(sh + 0x18).ok_or_else(bad)?,
+            e.u64(sh + 0x20).ok_or_else(bad)?,
+        );
+        let link = e.u32(sh + 0x28).ok_or_else(bad)?;
+        let entsize = e.u64(sh + 0x38).ok_or_else(bad)?.max(24);
+        let strtab = e.u64(shoff + link * shentsize + 0x18).ok_or_else(bad)?;
+        for j in 0..size / entsize {
+            let st = off + j * entsize;
+            let name = e.u32(st).ok_or_else(bad)?;
+            let info = lib
+                .get(usize::try_from(st + 4).map_err(|_| bad())?)
+                .ok_or_else(bad)?;
+            let shndx = e.u16(st + 6).ok_or_else(bad)?;
+            const STT_FUNC: u8 = 2;
+            if info & 0xf == STT_FUNC
+                && shndx != 0
+                && e.name(strtab + name) == Some(symbol.as_bytes())
+            {
+                return Ok(());
+            }
+        }
+    }
+    Err(format!(
+        "is a shared library but does not export {symbol} (not the mps-solid FMU library)"
+    ))
+}
+
 /// Builds `out` (NAME.fmu) from a scene and the built library (target/<profile>/libmps_solid.so).
+/// The scene is validated and its model built (a scene that cannot initialise is refused now,
+/// not in the importer); the library must be an ELF shared object exporting fmi2DoStep. The
+/// archive is written to a temporary file beside `out` and renamed onto it when complete, so a
+/// failure leaves no partial FMU (and an existing `out` untouched).
 pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String> {
     scene.validate().map_err(|e| e.to_string())?;
-    let lib = std::fs::read(library)
-        .map_err(|e| format!("cannot read the library {}: {e}", library.display()))?;
-    if lib.len() < 4 || &lib[..4] != b"\x7fELF" {
+    if same_file(library, out) {
         return Err(format!(
-            "{} is not an ELF shared library (build it with cargo build --release)",
-            library.display()
+            "the output {} is the library itself; choose another --out",
+            out.display()
         ));
     }
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    }
+    let lib = std::fs::read(library)
+        .map_err(|e| format!("cannot read the library {}: {e}", library.display()))?;
+    check_shared_library(&lib, "fmi2DoStep").map_err(|m| {
+        format!(
+            "{} {m}; give the libmps_solid.so built by cargo build --release",
+            library.display()
+        )
+    })?;
+    crate::sim::Simulation::new(scene)
+        .map_err(|e| format!("the scene's model cannot be built: {e}"))?;
     let xml = super::model_description::packed_model_description_xml(scene)?;
-    let write = || -> zip::result::ZipResult<()> {
-        let file = std::fs::File::create(out)?;
-        let mut z = ZipWriter::new(file);
-        let opts = SimpleFileOptions::default()
-            .compression_method(CompressionMethod::Deflated)
-            .unix_permissions(0o644);
-        let add = |z: &mut ZipWriter<std::fs::File>, name: &str, data: &[u8], mode: u32| {
-            z.start_file(name, opts.unix_permissions(mode))?;
-            z.write_all(data)?;
-            Ok::<(), zip::result::ZipError>(())
-        };
-        add(&mut z, "modelDescription.xml", xml.as_bytes(), 0o644)?;
-        for d in [
-            "binaries/",
-            "binaries/linux64/",
-            "resources/",
-            "documentation/",
-        ] {
-            z.add_directory(d, opts.unix_permissions(0o755))?;
+    let dir = match out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        Some(dir) => {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| format!("cannot create the directory {}: {e}", dir.display()))?;
+            dir.to_path_buf()
         }
-        add(
-            &mut z,
-            &format!("binaries/linux64/{}.so", scene.name),
-            &lib,
-            0o755,
-        )?;
-        add(
-            &mut z,
-            "resources/scene.json",
-            scene.to_json().as_bytes(),
-            0o644,
-        )?;
-        add(
-            &mut z,
-            "documentation/index.html",
-            documentation_html(scene).as_bytes(),
-            0o644,
-        )?;
-        z.finish()?;
-        Ok(())
+        None => std::path::PathBuf::from("."),
     };
-    write().map_err(|e| format!("cannot write {}: {e}", out.display()))
+    let file_name = out
+        .file_name()
+        .ok_or_else(|| format!("{} does not name a file", out.display()))?;
+    let tmp = dir.join(format!(
+        ".{}.{}.tmp",
+        file_name.to_string_lossy(),
+        std::process::id()
+    ));
+    let file =
+        std::fs::File::create(&tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
+    let result = write_archive(scene, &xml, &lib, file)
+        .map_err(|e| format!("cannot write {}: {e}", tmp.display()))
+        .and_then(|()| {
+            std::fs::rename(&tmp, out)
+                .map_err(|e| format!("cannot rename {} to {}: {e}", tmp.display(), out.display()))
+        });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Writes the FMU archive into `file` and syncs it.
+fn write_archive(
+    scene: &Scene,
+    xml: &str,
+    lib: &[u8],
+    file: std::fs::File,
+) -> zip::result::ZipResult<()> {
+    let mut z = ZipWriter::new(file);
+    let opts = SimpleFileOptions::default()
+        .compression_method(CompressionMethod::Deflated)
+        .unix_permissions(0o644);
+    let add = |z: &mut ZipWriter<std::fs::File>, name: &str, data: &[u8], mode: u32| {
+        z.start_file(name, opts.unix_permissions(mode))?;
+        z.write_all(data)?;
+        Ok::<(), zip::result::ZipError>(())
+    };
+    add(&mut z, "modelDescription.xml", xml.as_bytes(), 0o644)?;
+    for d in [
+        "binaries/",
+        "binaries/linux64/",
+        "resources/",
+        "documentation/",
+    ] {
+        z.add_directory(d, opts.unix_permissions(0o755))?;
+    }
+    add(
+        &mut z,
+        &format!("binaries/linux64/{}.so", scene.name),
+        lib,
+        0o755,
+    )?;
+    add(
+        &mut z,
+        "resources/scene.json",
+        scene.to_json().as_bytes(),
+        0o644,
+    )?;
+    add(
+        &mut z,
+        "documentation/index.html",
+        documentation_html(scene).as_bytes(),
+        0o644,
+    )?;
+    let file = z.finish()?;
+    file.sync_all()?;
+    Ok(())
 }

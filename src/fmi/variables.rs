@@ -1,6 +1,7 @@
 //! The one variable table of an FMU, derived from a scene: names, value references, types,
 //! causality, variability, units, start values and what each variable means. It drives
 //! `fmi2Get*`/`fmi2Set*` (through [`Quantity`]) and the modelDescription.xml.
+use crate::scene::limits::{self, Range};
 use crate::scene::Scene;
 
 /// FMI base type of a variable.
@@ -113,6 +114,10 @@ pub struct Variable {
     pub description: String,
     /// Start value (parameters and inputs only; outputs are initial="calculated").
     pub start: Option<f64>,
+    /// Smallest and largest value a parameter accepts (`min`/`max` in the XML; from
+    /// `scene::limits`).
+    pub min: Option<f64>,
+    pub max: Option<f64>,
     pub quantity: Quantity,
 }
 
@@ -241,6 +246,13 @@ impl VariableTable {
                         start: Option<f64>,
                         quantity: Quantity| {
             let value_reference = vars.len() as u32;
+            let bounds = match quantity {
+                Quantity::GravitySource | Quantity::BoundaryTiming => Some((1.0, 2.0)),
+                _ => parameter_range(quantity).map(|(r, off)| {
+                    let min = if off { 0.0 } else { r.min };
+                    (min, r.max)
+                }),
+            };
             vars.push(Variable {
                 name,
                 value_reference,
@@ -250,6 +262,8 @@ impl VariableTable {
                 unit,
                 description,
                 start,
+                min: bounds.map(|b| b.0),
+                max: bounds.map(|b| b.1),
                 quantity,
             });
         };
@@ -286,7 +300,11 @@ impl VariableTable {
                 Parameter,
                 Fixed,
                 None,
-                format!("Poisson's ratio of body '{}', in (-1, 0.5)", body.name),
+                format!(
+                    "Poisson's ratio of body '{}', in {}",
+                    body.name,
+                    limits::POISSON.describe()
+                ),
                 Some(m.poisson),
                 Quantity::Poisson(b),
             );
@@ -297,9 +315,12 @@ impl VariableTable {
             Parameter,
             Fixed,
             Some("s"),
-            "Fixed solver time step; 0 = automatic (safety factor times the stability limit). \
-             Each doStep is split into equal sub-steps no longer than this and lands exactly on t + h"
-                .into(),
+            format!(
+                "Fixed solver time step, in {}; 0 = automatic (safety factor times the stability \
+                 limit). Each doStep is split into equal sub-steps no longer than this and lands \
+                 exactly on t + h",
+                limits::SOLVER_DT.describe()
+            ),
             Some(scene.solver.dt.unwrap_or(0.0)),
             Quantity::SolverDt,
         );
@@ -320,9 +341,11 @@ impl VariableTable {
             Parameter,
             Fixed,
             None,
-            "Critical bond strain eps_max of Eq. (42): a bond stretched beyond it breaks for good; \
-             0 = no fracture"
-                .into(),
+            format!(
+                "Critical bond strain eps_max of Eq. (42), in {}: a bond stretched beyond it breaks \
+                 for good; 0 = no fracture",
+                limits::FRACTURE_STRAIN.describe()
+            ),
             Some(scene.solver.fracture_strain.unwrap_or(0.0)),
             Quantity::FractureStrain,
         );
@@ -599,62 +622,135 @@ impl VariableTable {
         })
     }
 
-    /// Writes a parameter's value into a scene, checking its range. Returns an error message
-    /// naming the problem.
+    /// Writes a parameter's value into a scene, checking its range (`scene::limits`, the same
+    /// ranges and message as the scene validation). Returns an error message naming the field.
     pub fn set_parameter(scene: &mut Scene, q: Quantity, v: f64) -> Result<(), String> {
-        let positive = |what: &str| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(format!("{what} must be a positive finite number, got {v}"))
-            }
+        let (range, off) = parameter_range(q).ok_or("not a parameter")?;
+        let field = match q {
+            Quantity::Density(b) | Quantity::Young(b) | Quantity::Poisson(b) => format!(
+                "{}.{}",
+                crate::scene::body_field(b, body(scene, b)?),
+                range.field
+            ),
+            _ => range.field.to_string(),
         };
+        if !(range.contains(v) || (off && v == 0.0)) {
+            let msg = range.check(v).err().unwrap_or_default();
+            return Err(match off {
+                false => format!("{field}: {msg}"),
+                true => format!(
+                    "{field}: {msg} (or 0 = {})",
+                    if q == Quantity::SolverDt {
+                        "automatic"
+                    } else {
+                        "off"
+                    }
+                ),
+            });
+        }
         match q {
-            Quantity::Density(b) => {
-                positive("density")?;
-                body(scene, b)?.material.density = v;
-            }
-            Quantity::Young(b) => {
-                positive("Young's modulus")?;
-                body(scene, b)?.material.young = v;
-            }
-            Quantity::Poisson(b) => {
-                if !(v.is_finite() && v > -1.0 && v < 0.5) {
-                    return Err(format!("Poisson's ratio must be in (-1, 0.5), got {v}"));
-                }
-                body(scene, b)?.material.poisson = v;
-            }
-            Quantity::SolverDt => {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(format!("solver.dt must be >= 0 (0 = automatic), got {v}"));
-                }
-                scene.solver.dt = (v > 0.0).then_some(v);
-            }
-            Quantity::Damping => {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(format!("solver.damping must be >= 0, got {v}"));
-                }
-                scene.solver.damping = v;
-            }
-            Quantity::FractureStrain => {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(format!(
-                        "solver.fracture_strain must be >= 0 (0 = no fracture), got {v}"
-                    ));
-                }
-                scene.solver.fracture_strain = (v > 0.0).then_some(v);
-            }
+            Quantity::Density(b) => body(scene, b)?.material.density = v,
+            Quantity::Young(b) => body(scene, b)?.material.young = v,
+            Quantity::Poisson(b) => body(scene, b)?.material.poisson = v,
+            Quantity::SolverDt => scene.solver.dt = (v != 0.0).then_some(v),
+            Quantity::Damping => scene.solver.damping = v,
+            Quantity::FractureStrain => scene.solver.fracture_strain = (v != 0.0).then_some(v),
             _ => return Err("not a parameter".into()),
         }
         Ok(())
     }
 }
 
+/// The range of a parameter (`scene::limits`) and whether 0 is accepted besides it (meaning
+/// "automatic" for solver.dt, "no fracture" for solver.fracture_strain). None: not a parameter.
+pub fn parameter_range(q: Quantity) -> Option<(Range, bool)> {
+    Some(match q {
+        Quantity::Density(_) => (limits::DENSITY, false),
+        Quantity::Young(_) => (limits::YOUNG, false),
+        Quantity::Poisson(_) => (limits::POISSON, false),
+        Quantity::SolverDt => (limits::SOLVER_DT, true),
+        Quantity::Damping => (limits::DAMPING, false),
+        Quantity::FractureStrain => (limits::FRACTURE_STRAIN, true),
+        _ => return None,
+    })
+}
+
+impl VariableTable {}
+
 fn body(scene: &mut Scene, b: usize) -> Result<&mut crate::scene::Body, String> {
     scene
         .bodies
         .get_mut(b)
         .ok_or_else(|| format!("no body {b}"))
+}
+
+#[cfg(test)]
+mod range_tests {
+    use super::*;
+    use crate::cases::case1_scene;
+    use crate::physics::ElasticModel;
+
+    #[test]
+    fn set_parameter_refuses_what_validation_refuses() {
+        let s = case1_scene(0.05, ElasticModel::Corrected, None);
+        let t = VariableTable::new(&s);
+        let cases = [
+            ("column.density", 1e-30, "material.density"),
+            ("column.young", 1e30, "material.young"),
+            ("column.poisson", 0.49999999999999994, "material.poisson"),
+            ("solver.dt", 1e-30, "solver.dt"),
+            ("solver.damping", -1.0, "solver.damping"),
+            ("solver.fracture_strain", 1e3, "solver.fracture_strain"),
+        ];
+        for (name, v, field) in cases {
+            let var = t.by_name(name).unwrap_or_else(|| panic!("{name}"));
+            let mut sc = s.clone();
+            let e = VariableTable::set_parameter(&mut sc, var.quantity, v).unwrap_err();
+            assert!(e.contains(field) && e.contains("must be in"), "{name}: {e}");
+            assert_eq!(sc, s, "{name}: nothing set");
+            // The same value in the scene file is refused by the validation with the same text.
+            let mut bad = s.clone();
+            VariableTable::set_unchecked(&mut bad, var.quantity, v);
+            let ve = bad.validate().unwrap_err().to_string();
+            let msg = e
+                .split(": ")
+                .nth(1)
+                .unwrap()
+                .split(" (or 0")
+                .next()
+                .unwrap();
+            assert!(ve.contains(msg), "{name}: '{ve}' vs '{e}'");
+            // Bounds are declared and the start value lies within them.
+            let (lo, hi) = (var.min.unwrap(), var.max.unwrap());
+            assert!(
+                lo <= var.start.unwrap() && var.start.unwrap() <= hi,
+                "{name}"
+            );
+            // (solver.dt and fracture_strain also take 0 = off, so their declared min is 0.)
+            let off = parameter_range(var.quantity).unwrap().1;
+            assert!(off || !(lo..=hi).contains(&v), "{name}");
+        }
+        let mut sc = s.clone();
+        let dt = t.by_name("solver.dt").unwrap().quantity;
+        VariableTable::set_parameter(&mut sc, dt, 0.0).unwrap();
+        assert_eq!(sc.solver.dt, None);
+        VariableTable::set_parameter(&mut sc, dt, 1e-5).unwrap();
+        assert_eq!(sc.solver.dt, Some(1e-5));
+    }
+
+    impl VariableTable {
+        fn set_unchecked(scene: &mut Scene, q: Quantity, v: f64) {
+            match q {
+                Quantity::Density(b) => scene.bodies[b].material.density = v,
+                Quantity::Young(b) => scene.bodies[b].material.young = v,
+                Quantity::Poisson(b) => scene.bodies[b].material.poisson = v,
+                Quantity::SolverDt => scene.solver.dt = Some(v),
+                Quantity::Damping => scene.solver.damping = v,
+                Quantity::FractureStrain => scene.solver.fracture_strain = Some(v),
+                _ => unreachable!(),
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -29,11 +29,35 @@ pub struct Bonds<const D: usize> {
 impl<const D: usize> Bonds<D> {
     /// Finds all pairs of the same body within `re` with a cell grid (O(N)).
     pub fn build(x0: &[Vect<D>], body: &[u32], re: f64) -> Self {
-        let grid = CellGrid::build(x0, None, re);
         let mut b = Bonds::<D> {
             start: Vec::with_capacity(x0.len() + 1),
             ..Default::default()
         };
+        b.fill(x0, body, re);
+        b
+    }
+
+    /// As `build`, with the arrays reserved fallibly for `per_particle` bonds per particle
+    /// first (more grow the arrays as usual): running out of memory is an error, not an abort.
+    pub fn try_build(
+        x0: &[Vect<D>],
+        body: &[u32],
+        re: f64,
+        per_particle: usize,
+    ) -> Result<Self, std::collections::TryReserveError> {
+        let cap = x0.len().saturating_mul(per_particle);
+        let mut b = Bonds::<D>::default();
+        b.start.try_reserve_exact(x0.len() + 1)?;
+        b.nbr.try_reserve_exact(cap)?;
+        b.r0.try_reserve_exact(cap)?;
+        b.w0.try_reserve_exact(cap)?;
+        b.fill(x0, body, re);
+        Ok(b)
+    }
+
+    fn fill(&mut self, x0: &[Vect<D>], body: &[u32], re: f64) {
+        let grid = CellGrid::build(x0, None, re);
+        let b = self;
         b.start.push(0);
         let mut near = Vec::new();
         for i in 0..x0.len() {
@@ -52,7 +76,6 @@ impl<const D: usize> Bonds<D> {
             }
             b.start.push(b.nbr.len() as u32);
         }
-        b
     }
 
     /// Range of bond indices of particle i.
@@ -68,6 +91,26 @@ impl<const D: usize> Bonds<D> {
     pub fn is_empty(&self) -> bool {
         self.nbr.is_empty()
     }
+}
+
+/// The bonds of a particle with a full neighbourhood on the lattice of spacing l0: the lattice
+/// points other than itself within re (12 in 2D and 32 in 3D for re = 2.1 l0).
+pub fn lattice_neighbours<const D: usize>(l0: f64, re: f64) -> usize {
+    let m = (re / l0).ceil() as i64;
+    let side = (2 * m + 1) as usize;
+    (0..side.pow(D as u32))
+        .filter(|&code| {
+            let mut c = code;
+            let mut r2 = 0.0;
+            for _ in 0..D {
+                let k = (c % side) as i64 - m;
+                c /= side;
+                r2 += (k as f64 * l0).powi(2);
+            }
+            // Within re as the neighbour search counts (<=), with room for round-off.
+            r2 > 0.0 && r2 <= re * re * (1.0 + 1e-9)
+        })
+        .count()
 }
 
 /// The number density n0 of a particle with a full neighbourhood on the square/cubic lattice of

@@ -1,7 +1,7 @@
 //! The simulated world: bodies of particles, bonds, boundary groups, loads and gravity, and the
 //! order of a step (integrate with the forces of the current state, then evaluate the forces of
 //! the new state, so reactions and energies always describe the current time).
-use super::bonds::{lattice_number_density, Bonds};
+use super::bonds::{lattice_neighbours, lattice_number_density, Bonds};
 use super::boundary::{BoundaryGroup, GravityLaw, GroupMotion, LoadRegion};
 use super::contact::{Contact, Overlap};
 use super::dim::{Dim, Space, Vect};
@@ -35,6 +35,19 @@ pub enum SimError {
     },
     #[error("invalid input: {0}")]
     Invalid(String),
+    #[error("advancing to t = {t_end:e} s would take {steps} solver steps of dt = {dt:.4e} s, more than solver.max_steps = {limit}; nothing was done (use a shorter advance, a larger particle spacing or a softer/denser material, or raise solver.max_steps)")]
+    TooMuchWork {
+        /// Time the advance was asked to reach (s).
+        t_end: f64,
+        /// Steps it would take.
+        steps: u64,
+        /// solver.max_steps.
+        limit: u64,
+        /// The solver step (s).
+        dt: f64,
+    },
+    #[error("out of memory: {0}")]
+    OutOfMemory(String),
 }
 
 /// A body to create: its material, particle positions and initial velocity.
@@ -138,6 +151,21 @@ where
             fix: vec![],
             n_ref: vec![],
         };
+        let total: usize = bodies.iter().map(|b| b.points.len()).sum();
+        let oom = |e: std::collections::TryReserveError| {
+            SimError::OutOfMemory(format!(
+                "cannot allocate the arrays of {total} particles: {e}"
+            ))
+        };
+        p.x0.try_reserve_exact(total).map_err(oom)?;
+        p.x.try_reserve_exact(total).map_err(oom)?;
+        p.v.try_reserve_exact(total).map_err(oom)?;
+        p.q.try_reserve_exact(total).map_err(oom)?;
+        p.w.try_reserve_exact(total).map_err(oom)?;
+        p.body.try_reserve_exact(total).map_err(oom)?;
+        p.mass.try_reserve_exact(total).map_err(oom)?;
+        p.inertia.try_reserve_exact(total).map_err(oom)?;
+        p.fix.try_reserve_exact(total).map_err(oom)?;
         let volume = l0.powi(D as i32);
         for (b, body) in bodies.iter().enumerate() {
             let m = body.material.density * volume;
@@ -157,7 +185,8 @@ where
         if n == 0 {
             return Err(SimError::Invalid("the scene has no particles".into()));
         }
-        let bonds = Bonds::build(&p.x0, &p.body, re);
+        let bonds = Bonds::try_build(&p.x0, &p.body, re, lattice_neighbours::<D>(l0, re))
+            .map_err(|e| SimError::OutOfMemory(format!("cannot allocate the bonds: {e}")))?;
         p.n_ref = (0..n)
             .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
             .collect();

@@ -34,16 +34,31 @@ impl<const D: usize> Model<D>
 where
     Space: Dim<D>,
 {
-    /// Builds the world of a validated scene of dimension D.
+    /// Builds the world of a validated scene of dimension D. A scene whose memory estimate
+    /// exceeds the memory available is refused before anything is allocated, and the big
+    /// arrays are reserved fallibly, so running out of memory is an error, not an abort.
     pub fn build(scene: &Scene) -> Result<Self, SceneError> {
         assert_eq!(scene.dimension, D, "scene dimension");
         scene.validate()?;
+        super::memory::check(scene)?;
         let dp = scene.particle_spacing;
         let mut bodies = Vec::new();
         let mut ranges = Vec::new();
         let mut count = 0usize;
         for (k, b) in scene.bodies.iter().enumerate() {
             let mut pts: Vec<Vect<D>> = Vec::new();
+            let cells: usize = b
+                .boxes
+                .iter()
+                .filter_map(|r| scene.cell_counts(r, "").ok())
+                .map(|n| n.iter().product::<usize>())
+                .sum();
+            pts.try_reserve_exact(cells).map_err(|e| {
+                err(
+                    format!("{}.boxes", super::body_field(k, b)),
+                    format!("cannot allocate the {cells} particles of the body: {e}"),
+                )
+            })?;
             for (j, r) in b.boxes.iter().enumerate() {
                 let n = scene.cell_counts(r, &format!("bodies[{k}].boxes[{j}]"))?;
                 let first_new = pts.len();

@@ -2,8 +2,11 @@
 //! and load regions selected by region, gravity with the paper's ramp, probes, run settings.
 //! `Scene::validate` names the field and the problem for every bad input; `build` makes a World.
 mod build;
+pub mod limits;
+pub mod memory;
 
 pub use build::{Model, ProbeAt};
+use limits::num;
 
 use crate::physics::{Material, SolverOptions};
 use serde::{Deserialize, Serialize};
@@ -158,11 +161,19 @@ pub fn axis_index(name: &str) -> Option<usize> {
 }
 
 impl Scene {
-    /// Parses JSON.
+    /// Parses JSON: exactly one scene object, nothing but whitespace after it.
     pub fn from_json(text: &str) -> Result<Scene, SceneError> {
-        let de = &mut serde_json::Deserializer::from_str(text);
-        let s: Scene = serde_path_to_error::deserialize(de)
+        let mut de = serde_json::Deserializer::from_str(text);
+        let s: Scene = serde_path_to_error::deserialize(&mut de)
             .map_err(|e| err(e.path().to_string(), e.inner().to_string()))?;
+        de.end().map_err(|e| {
+            err(
+                "<end of the scene>",
+                format!(
+                    "{e}: only whitespace may follow the scene object (two scenes in one file?)"
+                ),
+            )
+        })?;
         s.validate()?;
         Ok(s)
     }
@@ -176,6 +187,18 @@ impl Scene {
     }
     /// Reads a .json or .toml file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let size = std::fs::metadata(path)
+            .map_err(|e| err("<file>", format!("cannot read {}: {e}", path.display())))?
+            .len();
+        if size > MAX_SCENE_BYTES {
+            return Err(err(
+                "<file>",
+                format!(
+                    "{} is {size} bytes long, more than a scene file may be ({MAX_SCENE_BYTES})",
+                    path.display()
+                ),
+            ));
+        }
         let text = std::fs::read_to_string(path)
             .map_err(|e| err("<file>", format!("cannot read {}: {e}", path.display())))?;
         match path.extension().and_then(|e| e.to_str()) {
@@ -201,52 +224,46 @@ impl Scene {
                 .all(|c| c.is_ascii_alphanumeric() || c == '_')
             || self.name.starts_with(|c: char| c.is_ascii_digit())
         {
-            return Err(err("name", format!("'{}' must be a non-empty identifier of letters, digits and '_' not starting with a digit", self.name)));
+            return Err(err("name", format!("{:?} must be a non-empty identifier of letters, digits and '_' not starting with a digit", self.name)));
         }
+        xml_text("description", &self.description, true)?;
         positive("particle_spacing", self.particle_spacing)?;
         let o = &self.solver;
         if !(o.re_factor.is_finite() && o.re_factor > 1.0 && o.re_factor <= 4.0) {
             return Err(err(
                 "solver.re_factor",
-                format!("must be in (1, 4], got {}", o.re_factor),
+                format!("must be in (1, 4], got {}", num(o.re_factor)),
             ));
         }
         if !(o.stabilisation.is_finite() && o.stabilisation >= 0.0) {
             return Err(err(
                 "solver.stabilisation",
-                format!("must be >= 0, got {}", o.stabilisation),
+                format!("must be >= 0, got {}", num(o.stabilisation)),
             ));
         }
         if let Some(dt) = o.dt {
-            positive("solver.dt", dt)?;
+            ranged("", &limits::SOLVER_DT, dt)?;
         }
-        if !(o.safety.is_finite() && o.safety > 0.0 && o.safety <= 1.0) {
-            return Err(err(
-                "solver.safety",
-                format!("must be in (0, 1], got {}", o.safety),
-            ));
-        }
-        if !(o.damping.is_finite() && o.damping >= 0.0) {
-            return Err(err(
-                "solver.damping",
-                format!("must be >= 0, got {}", o.damping),
-            ));
-        }
+        ranged("", &limits::SAFETY, o.safety)?;
+        ranged("", &limits::DAMPING, o.damping)?;
         if let Some(e) = o.fracture_strain {
-            positive("solver.fracture_strain", e)?;
+            ranged("", &limits::FRACTURE_STRAIN, e)?;
+        }
+        if o.max_steps == 0 {
+            return Err(err("solver.max_steps", "must be >= 1, got 0"));
         }
         let c = &o.contact;
         if !(c.surface_threshold.is_finite() && c.surface_threshold > 0.0) {
             return Err(err(
                 "solver.contact.surface_threshold",
-                format!("must be > 0, got {}", c.surface_threshold),
+                format!("must be > 0, got {}", num(c.surface_threshold)),
             ));
         }
         if !(c.overlap_fraction.is_finite() && c.overlap_fraction > 0.0 && c.overlap_fraction < 1.0)
         {
             return Err(err(
                 "solver.contact.overlap_fraction",
-                format!("must be in (0, 1), got {}", c.overlap_fraction),
+                format!("must be in (0, 1), got {}", num(c.overlap_fraction)),
             ));
         }
         positive("solver.contact.stiffness", c.stiffness)?;
@@ -254,11 +271,24 @@ impl Scene {
         if !(c.max_partners.is_finite() && c.max_partners >= 1.0) {
             return Err(err(
                 "solver.contact.max_partners",
-                format!("must be >= 1, got {}", c.max_partners),
+                format!("must be >= 1, got {}", num(c.max_partners)),
             ));
         }
-        positive("end_time", self.end_time)?;
-        positive("output_interval", self.output_interval)?;
+        ranged("", &limits::END_TIME, self.end_time)?;
+        ranged("", &limits::OUTPUT_INTERVAL, self.output_interval)?;
+        let outputs = self.end_time / self.output_interval;
+        if outputs > limits::MAX_OUTPUTS {
+            return Err(err(
+                "output_interval",
+                format!(
+                    "{} s gives {} samples over end_time = {} s, more than {}",
+                    num(self.output_interval),
+                    num(outputs.ceil()),
+                    num(self.end_time),
+                    num(limits::MAX_OUTPUTS)
+                ),
+            ));
+        }
         if !self.gravity.vector.is_empty() {
             vector("gravity.vector", &self.gravity.vector, d)?;
         }
@@ -268,42 +298,39 @@ impl Scene {
         if self.bodies.is_empty() {
             return Err(err("bodies", "a scene needs at least one body"));
         }
-        let mut total: f64 = 0.0;
         for (k, b) in self.bodies.iter().enumerate() {
-            let f = format!("bodies[{k}] ('{}')", b.name);
+            xml_text(&format!("bodies[{k}].name"), &b.name, false)?;
+            let f = body_field(k, b);
             if self.bodies[..k].iter().any(|o| o.name == b.name) {
                 return Err(err(format!("{f}.name"), "duplicate body name"));
             }
             let m = &b.material;
-            positive(&format!("{f}.material.density"), m.density)?;
-            positive(&format!("{f}.material.young"), m.young)?;
-            if !(m.poisson.is_finite() && m.poisson > -1.0 && m.poisson < 0.5) {
-                return Err(err(
-                    format!("{f}.material.poisson"),
-                    format!("must be in (-1, 0.5), got {}", m.poisson),
-                ));
-            }
+            ranged(&f, &limits::DENSITY, m.density)?;
+            ranged(&f, &limits::YOUNG, m.young)?;
+            ranged(&f, &limits::POISSON, m.poisson)?;
             if b.boxes.is_empty() {
                 return Err(err(format!("{f}.boxes"), "a body needs at least one box"));
             }
             for (j, r) in b.boxes.iter().enumerate() {
-                let counts = self.cell_counts(r, &format!("{f}.boxes[{j}]"))?;
-                total += counts.iter().map(|&c| c as f64).product::<f64>();
+                self.cell_counts(r, &format!("{f}.boxes[{j}]"))?;
             }
             if let Some(v) = &b.velocity {
                 vector(&format!("{f}.velocity"), v, d)?;
             }
         }
+        let total = self.particle_bound();
         if total > self.solver.max_particles as f64 {
             return Err(err(
                 "bodies",
                 format!(
-                    "{total} particles exceed solver.max_particles = {}",
+                    "{} exceed solver.max_particles = {}",
+                    memory::particles_text(self),
                     self.solver.max_particles
                 ),
             ));
         }
         for (k, g) in self.boundaries.iter().enumerate() {
+            xml_text(&format!("boundaries[{k}].name"), &g.name, false)?;
             let f = format!("boundaries[{k}] ('{}')", g.name);
             self.body_index(&g.body)
                 .ok_or_else(|| err(format!("{f}.body"), format!("no body named '{}'", g.body)))?;
@@ -326,12 +353,14 @@ impl Scene {
             }
         }
         for (k, l) in self.loads.iter().enumerate() {
+            xml_text(&format!("loads[{k}].name"), &l.name, false)?;
             let f = format!("loads[{k}] ('{}')", l.name);
             self.body_index(&l.body)
                 .ok_or_else(|| err(format!("{f}.body"), format!("no body named '{}'", l.body)))?;
             region(&format!("{f}.region"), &l.region, d)?;
         }
         for (k, p) in self.probes.iter().enumerate() {
+            xml_text(&format!("probes[{k}].name"), &p.name, false)?;
             let f = format!("probes[{k}] ('{}')", p.name);
             vector(&format!("{f}.point"), &p.point, d)?;
             if self.probes[..k].iter().any(|o| o.name == p.name) {
@@ -381,6 +410,17 @@ impl Scene {
         Ok(())
     }
 
+    /// Particles the boxes of all bodies hold before overlaps are dropped (an upper bound of the
+    /// particle count; 0 for boxes that are not valid).
+    pub fn particle_bound(&self) -> f64 {
+        self.bodies
+            .iter()
+            .flat_map(|b| &b.boxes)
+            .filter_map(|r| self.cell_counts(r, "").ok())
+            .map(|c| c.iter().map(|&n| n as f64).product::<f64>())
+            .sum()
+    }
+
     pub fn body_index(&self, name: &str) -> Option<usize> {
         self.bodies.iter().position(|b| b.name == name)
     }
@@ -394,15 +434,24 @@ impl Scene {
                 let len = r.max[k] - r.min[k];
                 let n = (len / dp).round();
                 if n < 1.0 || (n * dp - len).abs() > 1e-6 * dp {
-                    return Err(err(field, format!("side {k} has length {len} m, which is not a whole number (>= 1) of particle_spacing = {dp} m")));
+                    return Err(err(field, format!("side {k} has length {} m, which is not a whole number (>= 1) of particle_spacing = {} m", num(len), num(dp))));
                 }
                 if n > 1e7 {
-                    return Err(err(field, format!("side {k} holds {n} particles")));
+                    return Err(err(field, format!("side {k} holds {} particles, more than 1e7", num(n))));
                 }
                 Ok(n as usize)
             })
             .collect()
     }
+}
+
+/// Longest scene file read (bytes): a scene is a few kB, this keeps a wrong file from being
+/// read whole.
+const MAX_SCENE_BYTES: u64 = 64 << 20;
+
+/// The field path of body k in messages.
+pub(crate) fn body_field(k: usize, b: &Body) -> String {
+    format!("bodies[{k}] ('{}')", b.name.escape_debug())
 }
 
 fn positive(field: &str, v: f64) -> Result<(), SceneError> {
@@ -411,8 +460,50 @@ fn positive(field: &str, v: f64) -> Result<(), SceneError> {
     } else {
         Err(err(
             field,
-            format!("must be a positive finite number, got {v}"),
+            format!("must be a positive finite number, got {}", num(v)),
         ))
+    }
+}
+
+/// Checks v against a range of `limits`; the field is `prefix.range.field` (or the range's own
+/// field when prefix is empty).
+fn ranged(prefix: &str, r: &limits::Range, v: f64) -> Result<(), SceneError> {
+    r.check(v).map_err(|m| {
+        let field = if prefix.is_empty() {
+            r.field.to_string()
+        } else {
+            format!("{prefix}.{}", r.field)
+        };
+        err(field, m)
+    })
+}
+
+/// Text that goes into the modelDescription.xml: XML 1.0 allows no control character other than
+/// tab, line feed and carriage return (not even escaped), nor U+FFFE and U+FFFF. Names take no
+/// control character at all.
+fn xml_text(field: &str, s: &str, multiline: bool) -> Result<(), SceneError> {
+    let bad = s.chars().find(|&c| {
+        let allowed_ws = multiline && matches!(c, '\t' | '\n' | '\r');
+        (c.is_control() && (c as u32) < 0x20 && !allowed_ws)
+            || (!multiline && c.is_control())
+            || c == '\u{FFFE}'
+            || c == '\u{FFFF}'
+    });
+    match bad {
+        Some(c) => Err(err(
+            field,
+            format!(
+                "contains the control character U+{:04X}, which an FMU's modelDescription.xml \
+                 cannot hold{}",
+                c as u32,
+                if multiline {
+                    " (only tab and line breaks are allowed)"
+                } else {
+                    ""
+                }
+            ),
+        )),
+        None => Ok(()),
     }
 }
 

@@ -1,0 +1,196 @@
+//! The physically meaningful ranges of a scene's numbers, in one table: read by the scene
+//! validation, by the FMI layer (min/max of the parameters in the modelDescription and the range
+//! check of fmi2SetReal) and by the command line. Also the number format of error messages.
+
+/// A closed range [min, max] of a number, with its unit. Closed so that it maps one to one onto
+/// the FMI `min`/`max` attributes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Range {
+    /// Field path of the number below its owner ("material.density", "solver.dt", "end_time").
+    pub field: &'static str,
+    /// Smallest accepted value.
+    pub min: f64,
+    /// Largest accepted value.
+    pub max: f64,
+    /// Unit as written in messages and the modelDescription ("" when dimensionless).
+    pub unit: &'static str,
+}
+
+impl Range {
+    /// Whether v lies in [min, max] (NaN never does).
+    pub fn contains(&self, v: f64) -> bool {
+        v >= self.min && v <= self.max
+    }
+
+    /// Ok when v is in range, else the message "must be in [min, max] unit, got v".
+    pub fn check(&self, v: f64) -> Result<(), String> {
+        if self.contains(v) {
+            Ok(())
+        } else {
+            Err(format!("must be in {}, got {}", self.describe(), num(v)))
+        }
+    }
+
+    /// "[min, max] unit".
+    pub fn describe(&self) -> String {
+        let unit = if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {}", self.unit)
+        };
+        format!("[{}, {}]{unit}", num(self.min), num(self.max))
+    }
+}
+
+/// Density rho (kg/m^3). The lightest solids (aerogels) are about 0.2 kg/m^3, the densest
+/// element (osmium) 22,590 kg/m^3; the bounds leave two decades below and a factor 4 above.
+pub const DENSITY: Range = Range {
+    field: "material.density",
+    min: 1e-3,
+    max: 1e5,
+    unit: "kg/m3",
+};
+
+/// Young's modulus E (Pa). Soft gels and tissue are about 100 Pa to 1 kPa, diamond and graphene
+/// about 1.2e12 Pa; an order of magnitude is left on either side.
+pub const YOUNG: Range = Range {
+    field: "material.young",
+    min: 1.0,
+    max: 1e13,
+    unit: "Pa",
+};
+
+/// Poisson's ratio nu (-). Theory allows (-1, 0.5). Near 0.5 the material is incompressible:
+/// lambda / mu = 2 nu / (1 - 2 nu) is 499 at nu = 0.499, so the pressure wave is already 22x
+/// faster than the shear wave (22x more explicit steps than at nu = 0) and the volumetric term
+/// is a difference of nearly equal numbers; at 0.49999999999999994 lambda / mu is about 9e15 and
+/// the stable step collapses to round-off. 0.499 is also the usual "nearly incompressible"
+/// value of rubber models. The lower bound mirrors it: at nu = -0.999, mu / K is about 750.
+pub const POISSON: Range = Range {
+    field: "material.poisson",
+    min: -0.999,
+    max: 0.499,
+    unit: "",
+};
+
+/// A fixed solver time step (s). The stable step of any accepted material and spacing is far
+/// above 1e-12 s for dp >= 1 um; a step beyond 1000 s resolves no elastic motion. The work is
+/// bounded separately by `solver.max_steps`.
+pub const SOLVER_DT: Range = Range {
+    field: "solver.dt",
+    min: 1e-12,
+    max: 1e3,
+    unit: "s",
+};
+
+/// Safety factor on the stable step (-). Below 0.01 a run costs 80x the default (0.8) with no
+/// gain: the time error of the symplectic scheme at 0.8 is already far below the spatial one.
+pub const SAFETY: Range = Range {
+    field: "solver.safety",
+    min: 0.01,
+    max: 1.0,
+    unit: "",
+};
+
+/// Mass-proportional damping c (1/s). c = 1e6 1/s damps a particle in 1 us, faster than any
+/// elastic wave crosses a particle of an accepted scene; the explicit update v (1 - c dt) needs
+/// c dt < 2 in any case.
+pub const DAMPING: Range = Range {
+    field: "solver.damping",
+    min: 0.0,
+    max: 1e6,
+    unit: "1/s",
+};
+
+/// Critical bond strain eps_max of Eq. (42) (-) when fracture is on. Bonds of brittle solids
+/// break at strains of 1e-4..1e-2 and rubber at about 7; 1e-6 is below the round-off of a
+/// strain measured on coordinates of order 1e3 dp, 10 (1000 %) above any solid.
+pub const FRACTURE_STRAIN: Range = Range {
+    field: "solver.fracture_strain",
+    min: 1e-6,
+    max: 10.0,
+    unit: "",
+};
+
+/// Simulated time (s). From a nanosecond to about 30 years; what a run of that length costs is
+/// bounded by `solver.max_steps`.
+pub const END_TIME: Range = Range {
+    field: "end_time",
+    min: 1e-9,
+    max: 1e9,
+    unit: "s",
+};
+
+/// Interval of the probe time series (s).
+pub const OUTPUT_INTERVAL: Range = Range {
+    field: "output_interval",
+    min: 1e-9,
+    max: 1e9,
+    unit: "s",
+};
+
+/// Largest number of probe samples end_time / output_interval of a run: the series is kept in
+/// memory and written as CSV (1e6 samples of 10 probes is about 240 MB).
+pub const MAX_OUTPUTS: f64 = 1e6;
+
+/// Defaults of `solver.max_steps` and `solver.max_particles` (kept with the solver options).
+pub use crate::physics::params::{DEFAULT_MAX_PARTICLES, DEFAULT_MAX_STEPS};
+
+/// A number for a message: the shortest text that reads back to the same f64, in plain notation
+/// for 1e-4 <= |v| < 1e7 and in scientific notation otherwise (never hundreds of digits).
+pub fn num(v: f64) -> String {
+    if !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if a == 0.0 || (1e-4..1e7).contains(&a) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_are_short_and_exact() {
+        assert_eq!(num(1e-300), "1e-300");
+        assert_eq!(num(1e300), "1e300");
+        assert_eq!(num(0.49999999999999994), "0.49999999999999994");
+        assert_eq!(num(0.0), "0");
+        assert_eq!(num(2.5), "2.5");
+        assert_eq!(num(-1.25e-7), "-1.25e-7");
+        assert_eq!(num(f64::NAN), "NaN");
+        assert_eq!(num(f64::NEG_INFINITY), "-inf");
+        for v in [
+            1e-300,
+            0.1 + 0.2,
+            123456.789,
+            9.99e6,
+            1.7976931348623157e308,
+        ] {
+            assert_eq!(num(v).parse::<f64>().unwrap(), v);
+            assert!(num(v).len() <= 24, "{}", num(v));
+        }
+    }
+
+    #[test]
+    fn ranges_hold_the_paper_values_and_refuse_the_absurd() {
+        assert!(DENSITY.contains(1000.0) && !DENSITY.contains(1e-30));
+        assert!(YOUNG.contains(6e6) && YOUNG.contains(1e12) && !YOUNG.contains(1e30));
+        assert!(POISSON.contains(0.3) && !POISSON.contains(0.49999999999999994));
+        assert!(!SOLVER_DT.contains(1e-30) && SOLVER_DT.contains(1e-5));
+        assert!(!SAFETY.contains(1e-300) && SAFETY.contains(0.8));
+        assert!(!DENSITY.contains(f64::NAN));
+        assert_eq!(
+            POISSON.check(0.5).unwrap_err(),
+            "must be in [-0.999, 0.499], got 0.5"
+        );
+        assert_eq!(
+            DENSITY.check(1e-30).unwrap_err(),
+            "must be in [0.001, 100000] kg/m3, got 1e-30"
+        );
+    }
+}

@@ -1,0 +1,227 @@
+//! Memory a scene needs and memory the machine has: the estimate is checked before the world is
+//! allocated, so that a scene too big for the machine is an error naming the particle count and
+//! the estimate instead of an abort (or the OOM killer) in the middle of the build.
+use super::limits::num;
+use super::{err, Scene, SceneError};
+
+/// Bytes per particle besides its bonds (2D, 3D) and per stored (directed) bond: the peak of
+/// `Simulation::new` measured with a counting allocator (tests/limits_memory.rs; `CALIBRATE=1`
+/// prints the figures) is exactly linear in the bonds per particle: 440 + 28 nb bytes in 2D,
+/// 825 + 36 nb in 3D (nbr 4 + r0 8 D + w0 8 bytes per bond), at re = 1.5, 2.1 and 3 dp and
+/// 8,000 to 250,000 particles (776 B per particle in 2D and 1977 B in 3D at re = 2.1 dp). The
+/// constants add about 15 % for what grows during a run (contact pair lists) and the allocator.
+const BASE_BYTES: [u64; 2] = [512, 960];
+const BOND_BYTES: [u64; 2] = [32, 40];
+/// Fixed cost of a world whatever its size (bytes).
+const FIXED_BYTES: u64 = 1 << 20;
+
+/// What a scene needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MemoryEstimate {
+    /// Particles the boxes can hold (an upper bound: overlapping boxes drop some).
+    pub particles: u64,
+    /// Bonds per interior particle: lattice neighbours within re = re_factor dp.
+    pub bonds_per_particle: u64,
+    /// Bytes per particle, bonds included.
+    pub bytes_per_particle: u64,
+    /// Total (bytes).
+    pub bytes: u64,
+}
+
+/// Memory the process may still use, and where the figure comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Available {
+    pub bytes: u64,
+    pub source: String,
+}
+
+/// Lattice points other than the origin within `re_factor` spacings: the bonds of an interior
+/// particle (12 in 2D and 32 in 3D for re = 2.1 dp).
+pub fn lattice_neighbours(dimension: usize, re_factor: f64) -> u64 {
+    let r = re_factor.clamp(0.0, 16.0);
+    let k = r.floor() as i64;
+    let r2 = r * r;
+    let mut count = 0;
+    let range = -k..=k;
+    for i in range.clone() {
+        for j in range.clone() {
+            let zs = if dimension == 3 { range.clone() } else { 0..=0 };
+            for l in zs {
+                let d2 = (i * i + j * j + l * l) as f64;
+                if d2 > 0.0 && d2 <= r2 * (1.0 + 1e-12) {
+                    count += 1;
+                }
+            }
+        }
+    }
+    count
+}
+
+/// The memory a scene needs once built (an upper bound of the peak of the build).
+pub fn estimate(scene: &Scene) -> MemoryEstimate {
+    let d = if scene.dimension == 3 { 1 } else { 0 };
+    let particles = scene.particle_bound();
+    let nb = lattice_neighbours(scene.dimension, scene.solver.re_factor);
+    let per = BASE_BYTES[d] + nb * BOND_BYTES[d];
+    let bytes = (particles * per as f64 + FIXED_BYTES as f64).min(u64::MAX as f64) as u64;
+    MemoryEstimate {
+        particles: particles.min(u64::MAX as f64) as u64,
+        bonds_per_particle: nb,
+        bytes_per_particle: per,
+        bytes,
+    }
+}
+
+/// "1.5 GB" (decimal units).
+pub fn bytes_text(b: u64) -> String {
+    let b = b as f64;
+    if b >= 1e9 {
+        format!("{:.1} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.1} MB", b / 1e6)
+    } else {
+        format!("{:.0} kB", (b / 1e3).ceil())
+    }
+}
+
+fn read(path: &str) -> Option<String> {
+    std::fs::read_to_string(path).ok()
+}
+
+/// The value of `key:` in a /proc file whose lines read "Key:   1234 kB" (bytes).
+fn kb_field(text: &str, key: &str) -> Option<u64> {
+    text.lines().find_map(|l| {
+        let rest = l.strip_prefix(key)?.strip_prefix(':')?;
+        let v: u64 = rest.split_whitespace().next()?.parse().ok()?;
+        Some(v.saturating_mul(1024))
+    })
+}
+
+/// The memory the process may still use: the least of MemAvailable, the headroom under the
+/// cgroup's memory limit (v2 memory.max or v1 memory.limit_in_bytes) and the headroom under the
+/// address-space limit (ulimit -v). None when nothing can be read (not Linux).
+pub fn available() -> Option<Available> {
+    let mut best: Option<Available> = None;
+    let mut consider = |bytes: u64, source: String| {
+        if best.as_ref().is_none_or(|b| bytes < b.bytes) {
+            best = Some(Available { bytes, source });
+        }
+    };
+    if let Some(v) = read("/proc/meminfo").and_then(|t| kb_field(&t, "MemAvailable")) {
+        consider(v, "MemAvailable in /proc/meminfo".into());
+    }
+    // cgroup v2: the process's own group (from /proc/self/cgroup), then the namespace root.
+    let own = read("/proc/self/cgroup").and_then(|t| {
+        t.lines()
+            .find_map(|l| l.strip_prefix("0::").map(|p| p.trim().to_string()))
+    });
+    let mut dirs = Vec::new();
+    if let Some(p) = own.filter(|p| p != "/") {
+        dirs.push(format!("/sys/fs/cgroup{p}"));
+    }
+    dirs.push("/sys/fs/cgroup".into());
+    for dir in dirs {
+        let max = read(&format!("{dir}/memory.max"));
+        if let Some(limit) = max.and_then(|t| t.trim().parse::<u64>().ok()) {
+            let used = read(&format!("{dir}/memory.current"))
+                .and_then(|t| t.trim().parse::<u64>().ok())
+                .unwrap_or(0);
+            consider(
+                limit.saturating_sub(used),
+                format!("cgroup limit {dir}/memory.max = {}", bytes_text(limit)),
+            );
+        }
+    }
+    // cgroup v1.
+    if let Some(limit) = read("/sys/fs/cgroup/memory/memory.limit_in_bytes")
+        .and_then(|t| t.trim().parse::<u64>().ok())
+        .filter(|&l| l < (1 << 60))
+    {
+        let used = read("/sys/fs/cgroup/memory/memory.usage_in_bytes")
+            .and_then(|t| t.trim().parse::<u64>().ok())
+            .unwrap_or(0);
+        consider(
+            limit.saturating_sub(used),
+            format!("cgroup limit memory.limit_in_bytes = {}", bytes_text(limit)),
+        );
+    }
+    // Address space (ulimit -v): the soft limit less what is mapped now.
+    if let Some(limit) = read("/proc/self/limits").and_then(|t| {
+        t.lines()
+            .find(|l| l.starts_with("Max address space"))
+            .and_then(|l| l["Max address space".len()..].split_whitespace().next())
+            .and_then(|v| v.parse::<u64>().ok())
+    }) {
+        let mapped = read("/proc/self/status")
+            .and_then(|t| kb_field(&t, "VmSize"))
+            .unwrap_or(0);
+        consider(
+            limit.saturating_sub(mapped),
+            format!("address-space limit (ulimit -v) {}", bytes_text(limit)),
+        );
+    }
+    best
+}
+
+/// Refuses a scene whose estimate exceeds `available` (no check when it is unknown).
+pub fn check_against(scene: &Scene, available: Option<&Available>) -> Result<(), SceneError> {
+    let e = estimate(scene);
+    match available {
+        Some(a) if e.bytes > a.bytes => Err(err(
+            "bodies",
+            format!(
+                "the scene has up to {} particles, which need about {} (estimate: {} bytes per \
+                 particle with {} bonds each), more than the {} of memory available ({}); use a \
+                 larger particle_spacing or fewer boxes",
+                e.particles,
+                bytes_text(e.bytes),
+                e.bytes_per_particle,
+                e.bonds_per_particle,
+                bytes_text(a.bytes),
+                a.source
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Refuses a scene that does not fit in the memory this process may still use.
+pub fn check(scene: &Scene) -> Result<(), SceneError> {
+    check_against(scene, available().as_ref())
+}
+
+/// The particle count in a message: "N particles (about X)".
+pub(crate) fn particles_text(scene: &Scene) -> String {
+    let e = estimate(scene);
+    format!(
+        "{} particles (about {} of memory)",
+        num(e.particles as f64),
+        bytes_text(e.bytes)
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn neighbours_of_the_lattice() {
+        assert_eq!(lattice_neighbours(2, 2.1), 12);
+        assert_eq!(lattice_neighbours(3, 2.1), 32);
+        assert_eq!(lattice_neighbours(2, 1.0), 4);
+        assert_eq!(lattice_neighbours(3, 1.5), 18);
+    }
+
+    #[test]
+    fn proc_fields() {
+        let t = "MemTotal:       24000000 kB\nMemAvailable:    1000 kB\n";
+        assert_eq!(kb_field(t, "MemAvailable"), Some(1024000));
+        assert_eq!(kb_field(t, "Mem"), None);
+    }
+
+    #[test]
+    fn this_machine_reports_memory() {
+        let a = available().expect("Linux has /proc/meminfo");
+        assert!(a.bytes > 0, "{a:?}");
+    }
+}

@@ -1,0 +1,163 @@
+//! Out of memory (issue 8, item 2): the memory estimate of a scene bounds the measured peak of
+//! building it (a counting allocator), a scene bigger than the memory available is refused
+//! before anything is allocated, and the default particle limit refuses a 170^3 cube at once.
+use mps_solid::scene::memory::{self, Available};
+use mps_solid::{Scene, Simulation};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+use std::sync::Mutex;
+
+/// The system allocator, counting the bytes in use and their peak.
+struct Counting;
+
+static NOW: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+/// One measurement at a time (tests run on several threads).
+static MEASURE: Mutex<()> = Mutex::new(());
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        let p = unsafe { System.alloc(l) };
+        if !p.is_null() {
+            let now = NOW.fetch_add(l.size(), Relaxed) + l.size();
+            PEAK.fetch_max(now, Relaxed);
+        }
+        p
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) };
+        NOW.fetch_sub(l.size(), Relaxed);
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
+        let q = unsafe { System.realloc(p, l, new) };
+        if !q.is_null() {
+            // Old and new block coexist while realloc copies.
+            let now = NOW.fetch_add(new, Relaxed) + new;
+            PEAK.fetch_max(now, Relaxed);
+            NOW.fetch_sub(l.size(), Relaxed);
+        }
+        q
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// A cube (3D) or square (2D) of n particles a side, nothing held, no gravity.
+fn block(dim: usize, n: usize, re_factor: f64) -> Scene {
+    let dp = 0.01;
+    let side = n as f64 * dp;
+    let v = |x: f64| vec![x; dim];
+    let text = serde_json::json!({
+        "name": "block",
+        "dimension": dim,
+        "particle_spacing": dp,
+        "solver": { "re_factor": re_factor, "max_particles": 100_000_000u64 },
+        "bodies": [{
+            "name": "b",
+            "material": { "density": 1000.0, "young": 1e6, "poisson": 0.3 },
+            "boxes": [{ "min": v(0.0), "max": v(side) }]
+        }],
+        "end_time": 0.01,
+        "output_interval": 0.001
+    })
+    .to_string();
+    Scene::from_json(&text).unwrap()
+}
+
+/// Peak bytes allocated while building the scene's simulation (beyond what was in use before).
+fn measured_peak(scene: &Scene) -> usize {
+    let _g = MEASURE.lock().unwrap();
+    let base = NOW.load(Relaxed);
+    PEAK.store(base, Relaxed);
+    let sim = Simulation::new(scene).unwrap();
+    let peak = PEAK.load(Relaxed) - base;
+    drop(sim);
+    peak
+}
+
+#[test]
+fn estimate_bounds_the_measured_peak() {
+    let extra: Vec<(usize, usize, f64)> = if std::env::var("CALIBRATE").is_ok() {
+        // More sizes for recalibrating the constants of scene::memory.
+        let mut v: Vec<(usize, usize, f64)> =
+            [100, 150, 250, 400, 500].map(|n| (2, n, 2.1)).to_vec();
+        v.extend([20, 25, 35, 45, 50, 60].map(|n| (3, n, 2.1)));
+        v.extend([(2, 300, 1.5), (2, 300, 3.0), (3, 40, 1.5), (3, 40, 3.0)]);
+        v
+    } else {
+        vec![]
+    };
+    for (dim, n, re) in extra.into_iter().chain([
+        (2, 300, 2.1),
+        (2, 200, 3.0),
+        (2, 200, 1.5),
+        (3, 40, 2.1),
+        (3, 30, 3.0),
+        (3, 30, 1.5),
+    ]) {
+        let s = block(dim, n, re);
+        let e = memory::estimate(&s);
+        let peak = measured_peak(&s);
+        let np = n.pow(dim as u32);
+        eprintln!(
+            "{dim}D {np} particles re {re}: peak {peak} B = {:.0} B/particle, estimate {} B/particle ({} bonds)",
+            peak as f64 / np as f64,
+            e.bytes_per_particle,
+            e.bonds_per_particle
+        );
+        assert_eq!(e.particles, np as u64);
+        // An upper bound, not a wild one: at most 30 % above the measured peak.
+        assert!(
+            e.bytes as f64 >= peak as f64,
+            "{dim}D re {re}: estimate {} < peak {peak}",
+            e.bytes
+        );
+        assert!(
+            (e.bytes as f64) < 1.3 * peak as f64,
+            "{dim}D re {re}: estimate {} far above peak {peak}",
+            e.bytes
+        );
+    }
+}
+
+#[test]
+fn too_big_for_the_memory_is_refused_before_building() {
+    let s = block(3, 100, 2.1);
+    let small = Available {
+        bytes: 100_000_000,
+        source: "test".into(),
+    };
+    let e = memory::check_against(&s, Some(&small))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("1000000 particles") && e.contains("100.0 MB") && e.contains("bodies"),
+        "{e}"
+    );
+    assert!(memory::check_against(&s, None).is_ok());
+    let big = Available {
+        bytes: 100_000_000_000,
+        source: "test".into(),
+    };
+    assert!(memory::check_against(&s, Some(&big)).is_ok());
+}
+
+#[test]
+fn a_170_cube_is_refused_at_once_by_the_default_limit() {
+    let mut s = block(3, 10, 2.1);
+    s.solver = Default::default();
+    s.bodies[0].boxes[0].max = vec![1.7; 3];
+    let _g = MEASURE.lock().unwrap();
+    let t = std::time::Instant::now();
+    let before = NOW.load(Relaxed);
+    let e = Simulation::new(&s).err().expect("refused").to_string();
+    let grown = NOW.load(Relaxed).saturating_sub(before);
+    assert!(
+        e.contains("4913000 particles") && e.contains("max_particles"),
+        "{e}"
+    );
+    assert!(e.contains("GB"), "the estimate is named: {e}");
+    assert!(t.elapsed().as_secs_f64() < 0.5, "{:?}", t.elapsed());
+    assert!(grown < 1 << 20, "nothing was built: {grown} bytes");
+}

@@ -1,5 +1,6 @@
 //! A simulation of either dimension behind one type, chosen by the scene: what the command line
 //! and the FMI layer use. Values cross this boundary as 3-arrays (z = 0 in 2D).
+use crate::physics::boundary::{GravityLaw, GroupMotion};
 use crate::physics::dim::{from3, to3};
 use crate::physics::world::WorldState;
 use crate::physics::SimError;
@@ -79,25 +80,43 @@ impl Simulation {
     pub fn advance_to(&mut self, t_end: f64) -> Result<u64, SimError> {
         with!(self, m => m.world.advance_to(t_end))
     }
-    /// Sets a constant gravity vector (m/s^2), replacing any ramp.
-    pub fn set_gravity(&mut self, g: [f64; 3]) {
-        with!(self, m => m.world.set_gravity(from3(g)))
+    /// Replaces the gravity law by `start + rate (t - t0)` (m/s^2, m/s^3, s; simulation time).
+    pub fn set_gravity_linear(&mut self, start: [f64; 3], rate: [f64; 3], t0: f64) {
+        with!(self, m => m.world.set_gravity(GravityLaw::Linear {
+            start: from3(start),
+            rate: from3(rate),
+            t0,
+        }))
     }
     /// Current gravity (m/s^2).
     pub fn gravity(&self) -> [f64; 3] {
         with!(self, m => to3(&m.world.gravity.at(m.world.time)))
     }
-    /// Sets the displacement boundary group g reaches at the end of the next advance (m).
-    pub fn set_group_displacement(&mut self, g: usize, d: [f64; 3]) {
-        with!(self, m => m.world.set_group_target(g, from3(d)))
+    /// Sets the motion of boundary group g: displacement `from` at `t_from`, moving linearly to
+    /// `to` at `t_to`, constant outside (m, s; simulation time).
+    pub fn set_group_motion(
+        &mut self,
+        g: usize,
+        from: [f64; 3],
+        to: [f64; 3],
+        t_from: f64,
+        t_to: f64,
+    ) {
+        with!(self, m => m.world.set_group_motion(g, GroupMotion {
+            from: from3(from),
+            to: from3(to),
+            t_from,
+            t_to,
+        }))
     }
     /// Displacement of boundary group g at the current time (m).
     pub fn group_displacement(&self, g: usize) -> [f64; 3] {
         with!(self, m => to3(&m.world.groups[g].motion.at(m.world.time)))
     }
-    /// Sets the total external force on load region r (N).
-    pub fn set_load(&mut self, r: usize, f: [f64; 3]) {
-        with!(self, m => m.world.set_load(r, from3(f)))
+    /// Sets the total external force on load region r (N) at simulation time `t_ref` and its rate
+    /// of change (N/s).
+    pub fn set_load(&mut self, r: usize, f: [f64; 3], rate: [f64; 3], t_ref: f64) {
+        with!(self, m => m.world.set_load(r, from3(f), from3(rate), t_ref))
     }
     pub fn load(&self, r: usize) -> [f64; 3] {
         with!(self, m => to3(&m.world.loads[r].force))

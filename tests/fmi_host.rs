@@ -149,7 +149,11 @@ fn logger_ptr() -> *const c_void {
 
 /// Messages logged to one instance: (status, category, message, instance name).
 #[derive(Default, Debug)]
-struct Log(Mutex<Vec<(c_int, String, String, String)>>);
+struct Log(
+    Mutex<Vec<(c_int, String, String, String)>>,
+    /// When set: the component the logger calls back into (fmi2GetReal) on every message.
+    std::sync::atomic::AtomicPtr<c_void>,
+);
 
 unsafe extern "C" fn sink(
     env: *mut c_void,
@@ -170,6 +174,17 @@ unsafe extern "C" fn sink(
         .lock()
         .unwrap()
         .push((status, s(category), s(message), s(name)));
+    let c = log.1.load(std::sync::atomic::Ordering::SeqCst);
+    if !c.is_null() {
+        // A logger that reads a value of the same instance while the message is delivered.
+        let vr: Vr = 0;
+        let mut x = 0.0;
+        let st = (api().fmi2GetReal)(c, &vr, 1, &mut x);
+        log.0
+            .lock()
+            .unwrap()
+            .push((st, "reentered".into(), format!("{x}"), s(name)));
+    }
 }
 
 impl Log {
@@ -472,27 +487,72 @@ fn normal_sequence_2d_with_prescribed_motion_and_load() {
 }
 
 #[test]
-fn gravity_law_until_set() {
+fn gravity_source_is_explicit() {
+    // Issue 8.9: the scene's gravity law (the Eq. (46) ramp of small3d) is not dropped because an
+    // input differs bitwise from its start value (-0.0, fmpy's interpolated -9.809999999999999):
+    // the parameter gravity_source selects the law (1, the default of a scene with a ramp) or the
+    // inputs (2); with 1, setting the inputs to other values is logged as ignored.
     let _g = shared();
     let u = Unpacked::new("small3d.json", "gravity");
-    let (uz, gz) = (u.vr("tip.uz"), u.vr("gravity_z"));
-    let run = |set: Option<f64>| {
+    let (uz, gx, gz, src) = (
+        u.vr("tip.uz"),
+        u.vr("gravity_x"),
+        u.vr("gravity_z"),
+        u.vr("gravity_source"),
+    );
+    let run = |source: Option<c_int>, set: &[(Vr, f64)]| {
         let i = Inst::new(&u);
-        if let Some(g) = set {
-            assert_eq!(i.set(&[gz], &[g]), OK);
+        if let Some(s) = source {
+            assert_eq!(
+                unsafe { (api().fmi2SetInteger)(i.c, &src, 1, &s) },
+                OK,
+                "{}",
+                i.log.all()
+            );
         }
+        let mut v = 0;
         i.init(None);
+        assert_eq!(unsafe { (api().fmi2GetInteger)(i.c, &src, 1, &mut v) }, OK);
+        for (k, &(r, x)) in set.iter().enumerate() {
+            assert_eq!(i.set(&[r], &[x]), OK, "set #{k}");
+        }
         for k in 0..10 {
             assert_eq!(i.step(k as f64 * 0.002, 0.002), OK);
         }
-        i.real(&[uz])[0]
+        (v, i.real(&[uz])[0], i.log.all())
     };
-    let ramp = run(None);
-    // Setting the start value again keeps the scene's law (the ramp).
-    assert_eq!(run(Some(-9.81)).to_bits(), ramp.to_bits());
-    // Any other value holds gravity constant: the full value at once deflects more than the ramp.
-    let sudden = run(Some(-9.810000001));
+    let (v, ramp, _) = run(None, &[]);
+    assert_eq!(v, 1, "a scene with a ramp defaults to its own law");
+    for set in [
+        vec![(gx, -0.0)],
+        vec![(gz, -9.809999999999999)],
+        vec![(gz, -9.81), (gx, -0.0)],
+    ] {
+        let (_, x, log) = run(None, &set);
+        assert_eq!(x.to_bits(), ramp.to_bits(), "{set:?} changed the ramp");
+        let warned = log.contains("gravity inputs are ignored");
+        assert_eq!(
+            warned,
+            set.iter().any(|&(r, x)| r == gz && x != -9.81),
+            "{set:?}: {log}"
+        );
+    }
+    // gravity_source = 2: the inputs, held: the full value at once deflects more than the ramp.
+    let (v, sudden, _) = run(Some(2), &[]);
+    assert_eq!(v, 2);
     assert!(sudden < ramp, "sudden {sudden} vs ramp {ramp}");
+    let (_, same, _) = run(Some(2), &[(gx, -0.0), (gz, -9.81)]);
+    assert_eq!(
+        same.to_bits(),
+        sudden.to_bits(),
+        "-0.0 and 0.0 are the same gravity"
+    );
+    // Other values are refused, naming the variable.
+    let i = Inst::new(&u);
+    i.expect_err(
+        unsafe { (api().fmi2SetInteger)(i.c, &src, 1, &3) },
+        "'gravity_source' (value reference",
+    );
 }
 
 #[test]
@@ -543,7 +603,9 @@ fn wrong_call_order() {
         );
         i.expect_err((a.fmi2ExitInitializationMode)(i.c), "illegal call sequence");
         i.expect_err((a.fmi2Terminate)(i.c), "illegal call sequence");
-        i.expect_err((a.fmi2GetFMUstate)(i.c, &mut st), "illegal call sequence");
+        // FMI 2.0 allows fmi2GetFMUstate right after instantiation.
+        assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK, "{}", i.log.all());
+        assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
         i.expect_err(
             (a.fmi2GetRealStatus)(i.c, 2, &mut x),
             "illegal call sequence",
@@ -963,7 +1025,7 @@ fn fmu_state_roundtrip_is_bitwise() {
         );
         j.expect_err(
             (a.fmi2DeSerializeFMUstate)(j.c, buf.as_ptr(), size / 2, &mut st2),
-            "cannot decode",
+            "checksum mismatch",
         );
         let other = Unpacked::new("small2d.json", "state");
         let k = Inst::new(&other);
@@ -1056,7 +1118,7 @@ fn status_queries_and_unsupported_functions() {
         );
         i.expect_err(
             (a.fmi2SetRealInputDerivatives)(i.c, &vr, 1, &1, &x),
-            "not supported",
+            "not an input",
         );
         i.expect_err(
             (a.fmi2GetRealOutputDerivatives)(i.c, &vr, 1, &1, &mut x),
@@ -1227,4 +1289,443 @@ fn fmu_state_carries_its_parameters() {
         assert_eq!(other.step(k as f64 * 0.002, 0.002), OK);
     }
     assert_eq!(other.real(&[uz])[0].to_bits(), expected.to_bits());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hardening (issue 8): each test failed on the code before its fix.
+
+/// Runs `f` on another thread and fails the test if it does not finish in `secs` (a deadlock
+/// or an unbounded step would otherwise hang the whole suite).
+fn within<T: Send + 'static>(secs: u64, what: &str, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(secs))
+        .unwrap_or_else(|_| panic!("{what} did not return within {secs} s"))
+}
+
+#[test]
+fn logger_may_call_back_into_the_instance() {
+    // Issue 8.5: the logger is called after the instance is released, so a host whose logger
+    // reads a value of the same instance (here on every message) does not deadlock.
+    let _g = shared();
+    let u = Unpacked::new("small2d.json", "reenter");
+    let i = Inst::new(&u);
+    i.init(None);
+    let ev = cstr("logEvents");
+    unsafe {
+        assert_eq!(
+            (api().fmi2SetDebugLogging)(i.c, 1, 1, [ev.as_ptr()].as_ptr()),
+            OK
+        );
+    }
+    i.log.1.store(i.c, std::sync::atomic::Ordering::SeqCst);
+    let i = within(20, "calls with a re-entrant logger", move || {
+        let bad = i.step(0.0, -1.0);
+        let good = i.step(0.0, 0.002);
+        let mut st: *mut c_void = null_mut();
+        let got = unsafe { (api().fmi2GetFMUstate)(i.c, &mut st) };
+        unsafe { (api().fmi2FreeFMUstate)(i.c, &mut st) };
+        assert_eq!((bad, good, got), (ERROR, OK, OK));
+        i
+    });
+    i.log
+        .1
+        .store(null_mut(), std::sync::atomic::Ordering::SeqCst);
+    let log = i.log.0.lock().unwrap().clone();
+    let reentered: Vec<_> = log.iter().filter(|m| m.1 == "reentered").collect();
+    assert!(reentered.len() >= 2, "{log:?}");
+    assert!(reentered.iter().all(|m| m.0 == OK), "{log:?}");
+    assert!(log.iter().any(|m| m.2.contains("communicationStepSize")));
+}
+
+#[test]
+fn fmu_state_of_another_fmu_is_refused_and_changes_nothing() {
+    // Issue 8.6 and 8.8: a state taken from another FMU (small3d into small2d) was accepted;
+    // a refused state must leave time, inputs and particles as they were.
+    let _g = shared();
+    let a = api();
+    let (u2, u3) = (
+        Unpacked::new("small2d.json", "foreign"),
+        Unpacked::new("small3d.json", "foreign"),
+    );
+    let (i2, i3) = (Inst::new(&u2), Inst::new(&u3));
+    i2.init(None);
+    i3.init(None);
+    for k in 0..5 {
+        assert_eq!(i3.step(k as f64 * 0.002, 0.002), OK);
+    }
+    assert_eq!(i2.step(0.0, 0.002), OK);
+    let fy = u2.vr("tip_load.fy");
+    assert_eq!(i2.set(&[fy], &[-1.0]), OK);
+    let outs = real_outputs(&u2);
+    let before = i2.real(&outs);
+    let mut st: *mut c_void = null_mut();
+    unsafe {
+        assert_eq!((a.fmi2GetFMUstate)(i3.c, &mut st), OK);
+        i2.expect_err((a.fmi2SetFMUstate)(i2.c, st), "another FMU");
+        assert_eq!((a.fmi2FreeFMUstate)(i3.c, &mut st), OK);
+        let mut t = 0.0;
+        assert_eq!((a.fmi2GetRealStatus)(i2.c, 2, &mut t), OK);
+        assert_eq!(t, 0.002, "time unchanged");
+    }
+    assert_eq!(i2.real(&outs), before, "outputs unchanged");
+    assert_eq!(i2.real(&[fy]), vec![-1.0], "inputs unchanged");
+    // And it steps on exactly like an instance that never saw the foreign state.
+    let j = Inst::new(&u2);
+    j.init(None);
+    assert_eq!(j.step(0.0, 0.002), OK);
+    assert_eq!(j.set(&[fy], &[-1.0]), OK);
+    for k in 1..4 {
+        assert_eq!(i2.step(k as f64 * 0.002, 0.002), OK);
+        assert_eq!(j.step(k as f64 * 0.002, 0.002), OK);
+    }
+    assert_eq!(i2.real(&outs), j.real(&outs));
+}
+
+/// A serialised FMU state of small2d after a few steps.
+fn serialized_state(u: &Unpacked, i: &Inst) -> Vec<c_char> {
+    let a = api();
+    for k in 0..3 {
+        assert_eq!(i.step(k as f64 * 0.002, 0.002), OK);
+    }
+    let _ = u;
+    let mut st: *mut c_void = null_mut();
+    let mut size = 0usize;
+    unsafe {
+        assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK);
+        assert_eq!((a.fmi2SerializedFMUstateSize)(i.c, st, &mut size), OK);
+        let mut buf = vec![0 as c_char; size];
+        assert_eq!(
+            (a.fmi2SerializeFMUstate)(i.c, st, buf.as_mut_ptr(), size),
+            OK
+        );
+        assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
+        buf
+    }
+}
+
+#[test]
+fn corrupted_serialized_states_are_refused() {
+    // Issue 8.7: 248 of 300 single-bit flips were accepted. With the CRC-32 every single-bit
+    // flip (and any burst of up to 32 bits) is detected: all 300 must be refused.
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small2d.json", "flips");
+    let i = Inst::new(&u);
+    i.init(None);
+    let buf = serialized_state(&u, &i);
+    let bits = buf.len() * 8;
+    let mut accepted = Vec::new();
+    for k in 0..300 {
+        let bit = (k * 7919 + 13) % bits;
+        let mut bad = buf.clone();
+        bad[bit / 8] ^= (1u8 << (bit % 8)) as c_char;
+        let mut st: *mut c_void = null_mut();
+        let s = unsafe { (a.fmi2DeSerializeFMUstate)(i.c, bad.as_ptr(), bad.len(), &mut st) };
+        if s == OK {
+            accepted.push(bit);
+            unsafe { (a.fmi2FreeFMUstate)(i.c, &mut st) };
+        } else {
+            assert!(st.is_null());
+        }
+    }
+    assert!(accepted.is_empty(), "accepted flips at bits {accepted:?}");
+    // Trailing or missing bytes too.
+    let mut st: *mut c_void = null_mut();
+    let mut long = buf.clone();
+    long.push(0);
+    unsafe {
+        i.expect_err(
+            (a.fmi2DeSerializeFMUstate)(i.c, long.as_ptr(), long.len(), &mut st),
+            "checksum",
+        );
+        i.expect_err(
+            (a.fmi2DeSerializeFMUstate)(i.c, buf.as_ptr(), buf.len() - 1, &mut st),
+            "checksum",
+        );
+        assert_eq!(
+            (a.fmi2DeSerializeFMUstate)(i.c, buf.as_ptr(), buf.len(), &mut st),
+            OK
+        );
+        assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
+    }
+}
+
+#[test]
+fn do_step_work_is_bounded() {
+    // Issue 8.1: fmi2DoStep(h = 1e6) never returned. It is refused before any work, with the
+    // step count in the message, and the instance steps on normally afterwards.
+    let _g = shared();
+    let u = Unpacked::new("small2d.json", "work");
+    let i = Inst::new(&u);
+    i.init(None);
+    let i = within(20, "doStep(h = 1e6)", move || {
+        let s = i.step(0.0, 1e6);
+        i.expect_err(s, "solver steps");
+        i
+    });
+    assert_eq!(i.step(0.0, 0.002), OK, "{}", i.log.all());
+    assert!(i.int(&[u.vr("steps")])[0] > 0);
+}
+
+#[test]
+fn input_derivatives_make_inputs_linear_over_the_step() {
+    // Issue 8.12: canInterpolateInputs is declared, so fmi2SetRealInputDerivatives must work:
+    // a load of 0 with derivative R over one step of h is the ramp R t. Reference: the same
+    // ramp given as values held over 40 sub-intervals (error O(h / 40)). The held value 0 alone
+    // would leave the tip unloaded.
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small2d.json", "derivatives");
+    let (fy, uy) = (u.vr("tip_load.fy"), u.vr("tip.uy"));
+    let gy = u.vr("gravity_y");
+    let (h, rate) = (0.02, -500.0);
+    let one = Inst::new(&u);
+    one.init(None);
+    assert_eq!(one.set(&[gy, fy], &[0.0, 0.0]), OK);
+    unsafe {
+        assert_eq!(
+            (a.fmi2SetRealInputDerivatives)(one.c, &fy, 1, &1, &rate),
+            OK,
+            "{}",
+            one.log.all()
+        );
+        one.expect_err(
+            (a.fmi2SetRealInputDerivatives)(one.c, &fy, 1, &2, &rate),
+            "only first derivatives",
+        );
+        one.expect_err(
+            (a.fmi2SetRealInputDerivatives)(one.c, &uy, 1, &1, &rate),
+            "not an input",
+        );
+    }
+    assert_eq!(one.step(0.0, h), OK);
+    let with_derivative = one.real(&[uy])[0];
+    let fine = Inst::new(&u);
+    fine.init(None);
+    let n = 40;
+    for k in 0..n {
+        let t = k as f64 * h / n as f64;
+        assert_eq!(
+            fine.set(&[gy, fy], &[0.0, rate * (t + 0.5 * h / n as f64)]),
+            OK
+        );
+        assert_eq!(fine.step(t, h / n as f64), OK);
+    }
+    let reference = fine.real(&[uy])[0];
+    assert!(reference < -1e-6, "the ramp bends the strip: {reference}");
+    assert!(
+        (with_derivative - reference).abs() < 0.02 * reference.abs(),
+        "derivative {with_derivative} vs fine hold {reference}"
+    );
+    // The derivative applies to one step: the next step holds the value set (0).
+    let held = Inst::new(&u);
+    held.init(None);
+    assert_eq!(held.set(&[gy, fy], &[0.0, 0.0]), OK);
+    assert_eq!(held.step(0.0, h), OK);
+    let still = held.real(&[uy])[0];
+    assert!(
+        still.abs() < 1e-12,
+        "no load, no gravity: no motion beyond round-off ({still})"
+    );
+}
+
+#[test]
+fn boundary_inputs_act_at_the_start_of_the_step_by_default() {
+    // Issue 8.14: fmpy and fmusim set u(t) before doStep(t, h) and expect it to act from t.
+    // Default (boundary_input_timing = 1): the value set is the displacement at t; with
+    // derivatives it moves linearly over the step. Timing 2 reaches the value at t + h: with the
+    // signal shifted one step ahead it gives the same motion as timing 1 with derivatives.
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small2d.json", "timing");
+    let (dx, gy, ux, timing) = (
+        u.vr("holder.dx"),
+        u.vr("gravity_y"),
+        u.vr("tip.ux"),
+        u.vr("boundary_input_timing"),
+    );
+    let h = 0.002;
+    let signal = |t: f64| 1e-3 * (t / 0.02).min(1.0);
+    let run = |mode: c_int, shifted: bool, derivative: bool| -> Vec<f64> {
+        let i = Inst::new(&u);
+        unsafe { assert_eq!((a.fmi2SetInteger)(i.c, &timing, 1, &mode), OK) };
+        i.init(None);
+        let mut out = Vec::new();
+        for k in 0..20 {
+            let t = k as f64 * h;
+            let v = if shifted { signal(t + h) } else { signal(t) };
+            assert_eq!(i.set(&[gy, dx], &[0.0, v]), OK);
+            if derivative {
+                let d = (signal(t + h) - signal(t)) / h;
+                unsafe { assert_eq!((a.fmi2SetRealInputDerivatives)(i.c, &dx, 1, &1, &d), OK) };
+            }
+            assert_eq!(i.step(t, h), OK);
+            out.push(i.real(&[ux])[0]);
+        }
+        out
+    };
+    let start_held = run(1, false, false);
+    let start_linear = run(1, false, true);
+    let end_shifted = run(2, true, false);
+    let end = run(2, false, false);
+    for k in 0..20 {
+        let scale = end_shifted.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(
+            (start_linear[k] - end_shifted[k]).abs() <= 1e-9 * scale,
+            "step {k}: {} vs {}",
+            start_linear[k],
+            end_shifted[k]
+        );
+    }
+    // Held over each step, the group trails the linear motion by up to one step's change;
+    // reached at the end of the step (the old behaviour) it trails by one more step.
+    let sum = |v: &[f64]| v.iter().sum::<f64>();
+    assert!(sum(&start_linear) > sum(&start_held), "linear leads held");
+    assert!(sum(&start_held) > sum(&end), "reaching at the end lags");
+}
+
+#[test]
+fn start_time_and_states_from_instantiation() {
+    // Issue 8.13: a non-zero startTime was refused, and so were fmi2GetFMUstate /
+    // fmi2SetFMUstate right after instantiation (fmusim's --initial-fmu-state-file restores a
+    // state there and steps on without initialising).
+    let _g = shared();
+    let a = api();
+    let u = Unpacked::new("small3d.json", "start");
+    let outs = real_outputs(&u);
+    let h = 0.002;
+    let from_zero = Inst::new(&u);
+    from_zero.init(None);
+    let shifted = Inst::new(&u);
+    unsafe {
+        assert_eq!((a.fmi2SetupExperiment)(shifted.c, 0, 0.0, 10.0, 0, 0.0), OK);
+        assert_eq!((a.fmi2EnterInitializationMode)(shifted.c), OK);
+        assert_eq!((a.fmi2ExitInitializationMode)(shifted.c), OK);
+    }
+    for k in 0..5 {
+        assert_eq!(from_zero.step(k as f64 * h, h), OK);
+        assert_eq!(shifted.step(10.0 + k as f64 * h, h), OK);
+    }
+    // The scene's laws start at startTime: the same motion, shifted in time.
+    // (Not bitwise: 10.002 - 10.0 is not 0.002, so the sub-steps differ by round-off.)
+    let (x, y) = (from_zero.real(&outs), shifted.real(&outs));
+    let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (p, q) in x.iter().zip(&y) {
+        assert!((p - q).abs() <= 1e-6 * scale, "{p} vs {q} (scale {scale})");
+    }
+    unsafe {
+        let mut t = 0.0;
+        assert_eq!((a.fmi2GetRealStatus)(shifted.c, 2, &mut t), OK);
+        assert!((t - 10.01).abs() < 1e-12);
+    }
+    // A state taken after 5 steps, serialised, restored into a fresh instance right after
+    // fmi2Instantiate: it steps on from t = 0.01 like the original.
+    let buf = unsafe {
+        let mut st: *mut c_void = null_mut();
+        let mut size = 0usize;
+        assert_eq!((a.fmi2GetFMUstate)(from_zero.c, &mut st), OK);
+        assert_eq!(
+            (a.fmi2SerializedFMUstateSize)(from_zero.c, st, &mut size),
+            OK
+        );
+        let mut buf = vec![0 as c_char; size];
+        assert_eq!(
+            (a.fmi2SerializeFMUstate)(from_zero.c, st, buf.as_mut_ptr(), size),
+            OK
+        );
+        assert_eq!((a.fmi2FreeFMUstate)(from_zero.c, &mut st), OK);
+        buf
+    };
+    let fresh = Inst::new(&u);
+    unsafe {
+        let mut st: *mut c_void = null_mut();
+        assert_eq!(
+            (a.fmi2DeSerializeFMUstate)(fresh.c, buf.as_ptr(), buf.len(), &mut st),
+            OK,
+            "{}",
+            fresh.log.all()
+        );
+        assert_eq!((a.fmi2SetFMUstate)(fresh.c, st), OK, "{}", fresh.log.all());
+        assert_eq!((a.fmi2FreeFMUstate)(fresh.c, &mut st), OK);
+    }
+    for k in 5..10 {
+        assert_eq!(from_zero.step(k as f64 * h, h), OK);
+        assert_eq!(fresh.step(k as f64 * h, h), OK, "{}", fresh.log.all());
+    }
+    assert_eq!(from_zero.real(&outs), fresh.real(&outs));
+    // A state taken in Instantiated mode restores to Instantiated: the host initialises.
+    let early = Inst::new(&u);
+    unsafe {
+        let mut st: *mut c_void = null_mut();
+        assert_eq!((a.fmi2GetFMUstate)(early.c, &mut st), OK);
+        assert_eq!((a.fmi2SetFMUstate)(fresh.c, st), OK);
+        assert_eq!((a.fmi2FreeFMUstate)(early.c, &mut st), OK);
+    }
+    fresh.expect_err(fresh.step(0.02, h), "illegal call sequence");
+    fresh.init(None);
+    assert_eq!(fresh.step(0.0, h), OK);
+}
+
+/// Threads of this process (all of them, named or not).
+fn process_threads() -> usize {
+    std::fs::read_dir("/proc/self/task").unwrap().count()
+}
+
+#[test]
+#[ignore = "run in a child process by no_thread_outlives_state_calls"]
+fn child_state_calls_thread_count() {
+    let u = Unpacked::new("small2d.json", "threads-child");
+    let before = process_threads();
+    {
+        let i = Inst::new(&u);
+        let a = api();
+        let mut st: *mut c_void = null_mut();
+        unsafe {
+            assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK);
+            assert_eq!((a.fmi2SetFMUstate)(i.c, st), OK);
+            i.init(None);
+            assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK);
+            assert_eq!((a.fmi2SetFMUstate)(i.c, st), OK);
+            assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
+        }
+        assert_eq!(i.step(0.0, 0.002), OK);
+    }
+    let after = process_threads();
+    println!("THREADS before={before} after={after}");
+}
+
+#[test]
+fn no_thread_outlives_state_calls() {
+    // Issue 8.4: fmi2SetFMUstate ran on rayon's global pool, whose threads outlive the
+    // instance. In a fresh process (no other test's threads), the thread count after
+    // fmi2FreeInstance is the one before fmi2Instantiate.
+    let out = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "child_state_calls_thread_count",
+            "--ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = text
+        .lines()
+        .find_map(|l| l.find("THREADS").map(|k| &l[k..]))
+        .unwrap_or_else(|| panic!("no THREADS line in {text}"));
+    let n: Vec<usize> = line
+        .split_whitespace()
+        .skip(1)
+        .map(|kv| kv.split('=').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(n[0], n[1], "{line}");
 }

@@ -103,7 +103,7 @@ fn bar_breaks_at_the_expected_elongation_and_not_before() {
     let dt_out = 1e-4;
     let pull = |w: &mut World<3>, k: usize| {
         let t = k as f64 * dt_out;
-        w.set_group_target(1, Vector3::new(rate * t, 0.0, 0.0));
+        w.ramp_group_to(1, Vector3::new(rate * t, 0.0, 0.0), t);
         w.advance_to(t).unwrap();
     };
     for model in [ElasticModel::Corrected, ElasticModel::Paper] {
@@ -150,7 +150,7 @@ fn bar_breaks_at_the_expected_elongation_and_not_before() {
         for _ in 0..200 {
             k += 1;
             let t = k as f64 * dt_out;
-            w.set_group_target(1, Vector3::new(rate * t, 0.0, 0.0));
+            w.ramp_group_to(1, Vector3::new(rate * t, 0.0, 0.0), t);
             w.advance_to(t).unwrap();
         }
         assert!(w.fragments() >= 2, "{model:?}: {} fragments", w.fragments());
@@ -193,7 +193,7 @@ fn pushed_together_fractured_halves_repel_or_overlap() {
         let mut max_reaction: f64 = 0.0;
         for k in 1..=100 {
             let t = k as f64 * 1e-4;
-            w.set_group_target(1, Vector3::new(-2.0 * L0 * t / 0.01, 0.0, 0.0));
+            w.ramp_group_to(1, Vector3::new(-2.0 * L0 * t / 0.01, 0.0, 0.0), t);
             result = w.advance_to(t).map(|_| ());
             if result.is_err() {
                 break;
@@ -267,7 +267,7 @@ fn broken_bonds_survive_state_restore_bitwise() {
     let pull = |w: &mut World<3>, k0: usize, k1: usize| {
         for k in k0..k1 {
             let t = k as f64 * 1e-4;
-            w.set_group_target(1, Vector3::new(2.0 * t, 0.0, 0.0));
+            w.ramp_group_to(1, Vector3::new(2.0 * t, 0.0, 0.0), t);
             w.advance_to(t).unwrap();
         }
     };

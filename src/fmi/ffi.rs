@@ -157,18 +157,30 @@ fn guard(
         );
         return fmi2Status::fmi2Error;
     }
+    // The instance's messages are handed to the host's logger only after the lock is released,
+    // so that a logger may call back into the instance (fmi2GetReal while an error is logged).
     let r = catch_unwind(AssertUnwindSafe(|| {
         let mut inst = comp.inst.lock().unwrap_or_else(|e| e.into_inner());
-        match f(&mut inst) {
+        let status = match f(&mut inst) {
             Ok(()) => Status::Ok,
             Err(e) => {
                 inst.report(function, &e);
                 e.status()
             }
-        }
+        };
+        let log = inst.take_log();
+        drop(inst);
+        (status, log)
     }));
     match r {
-        Ok(s) => s.into(),
+        Ok((s, log)) => {
+            let _ = catch_unwind(AssertUnwindSafe(|| {
+                for m in log {
+                    comp.logger.log(m.status, m.category, &m.message);
+                }
+            }));
+            s.into()
+        }
         Err(p) => {
             comp.fatal.store(true, Ordering::SeqCst);
             comp.logger.log(
@@ -315,11 +327,16 @@ pub unsafe extern "C" fn fmi2Instantiate(
             logger.clone(),
             loggingOn != 0,
         ) {
-            Ok(inst) => Box::into_raw(Box::new(Component {
-                logger: logger as Arc<dyn Logger>,
-                inst: Mutex::new(inst),
-                fatal: AtomicBool::new(false),
-            })) as fmi2Component,
+            Ok(inst) => {
+                for m in inst.take_log() {
+                    logger.log(m.status, m.category, &m.message);
+                }
+                Box::into_raw(Box::new(Component {
+                    logger: logger as Arc<dyn Logger>,
+                    inst: Mutex::new(inst),
+                    fatal: AtomicBool::new(false),
+                })) as fmi2Component
+            }
             Err(m) => fail(&m),
         }
     }));
@@ -466,8 +483,8 @@ pub unsafe extern "C" fn fmi2SetInteger(
 ) -> fmi2Status {
     with_instance(c, "fmi2SetInteger", |i| {
         let vr = slice(vr, nvr, "vr")?;
-        slice(value, nvr, "value")?;
-        i.set_integer(vr)
+        let value = slice(value, nvr, "value")?;
+        i.set_integer(vr, value)
     })
 }
 
@@ -631,7 +648,7 @@ pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
 // ---------------------------------------------------------------------------------------------
 // Co-simulation functions.
 
-/// fmi2SetRealInputDerivatives: not supported (canInterpolateInputs covers the displacements).
+/// fmi2SetRealInputDerivatives: first derivatives of the inputs for the next step (canInterpolateInputs).
 #[no_mangle]
 pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
     c: fmi2Component,
@@ -640,13 +657,11 @@ pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
     order: *const fmi2Integer,
     value: *const fmi2Real,
 ) -> fmi2Status {
-    let _ = (vr, nvr, order, value);
-    with_instance(c, "fmi2SetRealInputDerivatives", |_| {
-        Err(Instance::unsupported(
-            "fmi2SetRealInputDerivatives",
-            "maxOutputDerivativeOrder and input derivatives are not provided; group displacements \
-             are interpolated linearly over each step instead",
-        ))
+    with_instance(c, "fmi2SetRealInputDerivatives", |i| {
+        let vr = slice(vr, nvr, "vr")?;
+        let order = slice(order, nvr, "order")?;
+        let value = slice(value, nvr, "value")?;
+        i.set_real_input_derivatives(vr, order, value)
     })
 }
 

@@ -7,6 +7,7 @@ use super::variables::{Causality, Quantity, VarType, VariableTable};
 use crate::scene::Scene;
 use crate::sim::{SimState, Simulation};
 use serde::{Deserialize, Serialize};
+use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -99,14 +100,69 @@ pub const PENDING_STATUS: i32 = 1;
 pub const LAST_SUCCESSFUL_TIME: i32 = 2;
 pub const TERMINATED: i32 = 3;
 
-/// Values of the inputs as the host set them (start values until then).
+/// Where the gravity vector comes from (Integer parameter `gravity_source`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum GravitySource {
+    /// The scene's gravity law (constant, or the Eq. (46) ramp); the gravity inputs are ignored.
+    Scene = 1,
+    /// The inputs gravity_x/y/z, held over each step (or linear with input derivatives).
+    Inputs = 2,
+}
+
+impl GravitySource {
+    /// The default of a scene: its own law when it has a time law (the ramp), else the inputs
+    /// (whose start values are the scene's constant vector, so both agree until a host sets them).
+    pub fn default_for(scene: &Scene) -> Self {
+        if scene.gravity.paper_ramp_period.is_some() {
+            GravitySource::Scene
+        } else {
+            GravitySource::Inputs
+        }
+    }
+    pub fn from_int(v: i32) -> Option<Self> {
+        match v {
+            1 => Some(GravitySource::Scene),
+            2 => Some(GravitySource::Inputs),
+            _ => None,
+        }
+    }
+}
+
+/// When a boundary displacement input takes effect (Integer parameter `boundary_input_timing`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BoundaryTiming {
+    /// FMI 2.0 semantics, what generic masters (fmpy, fmusim, libcosim) expect: the value set
+    /// before doStep(t, h) is the displacement at t, held over the step, or extrapolated linearly
+    /// with the derivative of fmi2SetRealInputDerivatives.
+    AtStepStart = 1,
+    /// The value set before doStep(t, h) is reached at t + h, moving linearly from where the
+    /// group is: a smooth motion that lags the master's signal by one communication step.
+    AtStepEnd = 2,
+}
+
+impl BoundaryTiming {
+    pub fn from_int(v: i32) -> Option<Self> {
+        match v {
+            1 => Some(BoundaryTiming::AtStepStart),
+            2 => Some(BoundaryTiming::AtStepEnd),
+            _ => None,
+        }
+    }
+}
+
+/// Values of the inputs as the host set them (start values until then), their first
+/// derivatives for the next step, and the FMU-level settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 struct Inputs {
     gravity: [f64; 3],
-    /// Whether the host replaced the scene's gravity law by a constant vector.
-    gravity_set: bool,
     displacement: Vec<[f64; 3]>,
     load: Vec<[f64; 3]>,
+    /// d/dt of the inputs, set by fmi2SetRealInputDerivatives for the next doStep only.
+    gravity_rate: [f64; 3],
+    displacement_rate: Vec<[f64; 3]>,
+    load_rate: Vec<[f64; 3]>,
+    gravity_source: GravitySource,
+    boundary_timing: BoundaryTiming,
 }
 
 impl Inputs {
@@ -117,19 +173,44 @@ impl Inputs {
         }
         Inputs {
             gravity,
-            gravity_set: false,
             displacement: vec![[0.0; 3]; scene.boundaries.len()],
             load: vec![[0.0; 3]; scene.loads.len()],
+            gravity_rate: [0.0; 3],
+            displacement_rate: vec![[0.0; 3]; scene.boundaries.len()],
+            load_rate: vec![[0.0; 3]; scene.loads.len()],
+            gravity_source: GravitySource::default_for(scene),
+            boundary_timing: BoundaryTiming::AtStepStart,
         }
+    }
+    fn clear_rates(&mut self) {
+        self.gravity_rate = [0.0; 3];
+        self.displacement_rate
+            .iter_mut()
+            .for_each(|r| *r = [0.0; 3]);
+        self.load_rate.iter_mut().for_each(|r| *r = [0.0; 3]);
+    }
+    fn fits(&self, scene: &Scene) -> bool {
+        self.displacement.len() == scene.boundaries.len()
+            && self.displacement_rate.len() == scene.boundaries.len()
+            && self.load.len() == scene.loads.len()
+            && self.load_rate.len() == scene.loads.len()
     }
 }
 
-/// The complete state of an instance as plain data (`fmi2GetFMUstate`).
+/// The complete state of an instance as plain data (`fmi2GetFMUstate`), bound to its FMU by
+/// the GUID (a hash of the scene and the library version) and the particle count.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FmuState {
+    /// GUID of the FMU that made the state.
+    guid: String,
+    /// Particles of the model when the state was taken.
+    particles: u64,
+    /// Whether the state was taken after fmi2EnterInitializationMode (else in Instantiated).
+    initialized: bool,
     /// The scene with the parameter values in force.
     params: Scene,
     inputs: Inputs,
+    start_time: f64,
     time: f64,
     last_successful_time: f64,
     stop_time: Option<f64>,
@@ -138,7 +219,9 @@ pub struct FmuState {
 
 /// Magic and version of serialised FMU states.
 const STATE_MAGIC: &[u8; 8] = b"MPSFMUST";
-const STATE_VERSION: u32 = 1;
+const STATE_VERSION: u32 = 2;
+/// Largest serialised state accepted (bytes): bounds the allocations of a decoded state.
+const MAX_STATE_BYTES: u64 = 1 << 34;
 
 /// A rayon pool whose threads are std threads this instance owns and joins when dropped, so
 /// that none outlives `fmi2FreeInstance` (hosts unload the library right after).
@@ -266,9 +349,22 @@ pub fn load_scene(dir: &Path) -> Result<Scene, String> {
         .map_err(|e| format!("the FMU's scene {} is invalid: {e}", path.display()))
 }
 
+/// One log message waiting to be handed to the host's logger.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LogRecord {
+    pub status: Status,
+    pub category: &'static str,
+    pub message: String,
+}
+
+/// Records kept at most between two flushes (a host that never returns control would
+/// otherwise grow the buffer without bound); later ones are counted and reported.
+const MAX_PENDING_LOG: usize = 1000;
+
 /// One FMU instance.
 pub struct Instance {
     name: String,
+    guid: String,
     /// The scene the FMU was packed with.
     scene: Scene,
     /// The scene with the parameter values set by the host.
@@ -280,6 +376,8 @@ pub struct Instance {
     pool: WorkerPool,
     mode: Mode,
     inputs: Inputs,
+    /// startTime of fmi2SetupExperiment: the scene's time 0 (its time laws start here).
+    start_time: f64,
     time: f64,
     last_successful_time: f64,
     stop_time: Option<f64>,
@@ -287,14 +385,39 @@ pub struct Instance {
     outputs: Vec<f64>,
     /// Whether the energies in `outputs` are those of the current state.
     energies_fresh: bool,
+    /// Whether the gravity inputs were set while the scene's law is in force (warned once).
+    gravity_ignored_warned: bool,
     logger: Arc<dyn Logger>,
+    /// Messages of the current call: handed to the logger after the call has released the
+    /// instance ([`Instance::take_log`]), so a logger may call back into the instance.
+    pending_log: RefCell<Vec<LogRecord>>,
+    dropped_log: Cell<usize>,
     logging_on: bool,
     categories: [bool; LOG_CATEGORIES.len()],
 }
 
+/// Most solver steps one doStep may take: a larger request is refused before any work.
+const MAX_STEPS_PER_DO_STEP: u64 = 20_000_000;
+
 /// Relative tolerance of time comparisons.
 fn time_tol(t: f64) -> f64 {
     1e-9 * t.abs().max(1.0)
+}
+
+/// Every value of a state that must be finite is (a corrupted or foreign state is refused
+/// before it touches the instance).
+fn state_is_finite(s: &FmuState) -> bool {
+    let f3 = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+    s.time.is_finite()
+        && s.start_time.is_finite()
+        && s.last_successful_time.is_finite()
+        && s.stop_time.is_none_or(f64::is_finite)
+        && f3(&s.inputs.gravity)
+        && f3(&s.inputs.gravity_rate)
+        && s.inputs.displacement.iter().all(f3)
+        && s.inputs.displacement_rate.iter().all(f3)
+        && s.inputs.load.iter().all(f3)
+        && s.inputs.load_rate.iter().all(f3)
 }
 
 impl Instance {
@@ -328,20 +451,25 @@ impl Instance {
         let table = VariableTable::new(&scene);
         let inst = Instance {
             name: name.to_string(),
+            guid: expected,
             params: scene.clone(),
             inputs: Inputs::start(&scene),
             outputs: vec![0.0; table.vars.len()],
             energies_fresh: false,
+            gravity_ignored_warned: false,
             scene,
             table,
             sim: None,
             stale: true,
             pool,
             mode: Mode::Instantiated,
+            start_time: 0.0,
             time: 0.0,
             last_successful_time: 0.0,
             stop_time: None,
             logger,
+            pending_log: RefCell::new(Vec::new()),
+            dropped_log: Cell::new(0),
             logging_on,
             categories: [true; LOG_CATEGORIES.len()],
         };
@@ -371,17 +499,58 @@ impl Instance {
             .is_some_and(|i| self.categories[i])
     }
 
+    fn log(&self, status: Status, category: &'static str, message: String) {
+        let mut log = self.pending_log.borrow_mut();
+        if log.len() < MAX_PENDING_LOG {
+            log.push(LogRecord {
+                status,
+                category,
+                message,
+            });
+        } else {
+            self.dropped_log.set(self.dropped_log.get() + 1);
+        }
+    }
+
+    /// The messages logged since the last call, in order. The C layer takes them while it holds
+    /// the instance and hands them to the host's logger after releasing it.
+    pub fn take_log(&self) -> Vec<LogRecord> {
+        let mut out = std::mem::take(&mut *self.pending_log.borrow_mut());
+        let dropped = self.dropped_log.replace(0);
+        if dropped > 0 {
+            out.push(LogRecord {
+                status: Status::Warning,
+                category: "logStatusWarning",
+                message: format!("{dropped} further log messages were dropped"),
+            });
+        }
+        out
+    }
+
+    /// Hands the pending messages to the instance's logger (for Rust callers of this API; the C
+    /// layer uses [`Instance::take_log`] so that no lock is held while the host's logger runs).
+    pub fn flush_log(&self) {
+        for r in self.take_log() {
+            self.logger.log(r.status, r.category, &r.message);
+        }
+    }
+
     /// Logs an event (category logEvents) when debug logging is on.
     fn event(&self, msg: &str) {
         if self.logging_on && (self.category_on("logEvents") || self.category_on("logAll")) {
-            self.logger.log(Status::Ok, "logEvents", msg);
+            self.log(Status::Ok, "logEvents", msg.to_string());
         }
     }
 
     fn trace(&self, msg: &str) {
         if self.logging_on && self.category_on("logAll") {
-            self.logger.log(Status::Ok, "logAll", msg);
+            self.log(Status::Ok, "logAll", msg.to_string());
         }
+    }
+
+    /// Logs a warning (always: warnings are not debug messages).
+    fn warn(&self, msg: String) {
+        self.log(Status::Warning, "logStatusWarning", msg);
     }
 
     /// Logs an error of a call (always: errors are not debug messages).
@@ -390,11 +559,7 @@ impl Instance {
             Status::Warning | Status::Discard => "logStatusWarning",
             _ => "logStatusError",
         };
-        self.logger.log(
-            e.status(),
-            category,
-            &format!("{function}: {}", e.message()),
-        );
+        self.log(e.status(), category, format!("{function}: {}", e.message()));
     }
 
     fn require(&self, function: &str, allowed: &[Mode]) -> FmiResult<()> {
@@ -434,11 +599,12 @@ impl Instance {
     }
 
     /// fmi2SetupExperiment: the tolerance is ignored (the solver's step is set by stability).
+    /// startTime becomes the scene's time 0: its time laws (the Eq. (46) ramp) start there.
     pub fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> FmiResult<()> {
         self.require("fmi2SetupExperiment", &[Mode::Instantiated])?;
-        if !(start.is_finite() && start.abs() <= time_tol(0.0)) {
+        if !start.is_finite() {
             return Err(FmiError::Invalid(format!(
-                "startTime = {start}: the scene starts at t = 0 (restore an FMU state to start elsewhere)"
+                "startTime = {start} must be finite"
             )));
         }
         if let Some(s) = stop {
@@ -448,32 +614,30 @@ impl Instance {
                 )));
             }
         }
+        if self.sim.as_ref().is_some_and(|s| s.time() != 0.0) {
+            return Err(FmiError::IllegalCall(
+                "fmi2SetupExperiment after a restored FMU state that is not at the start: the \
+                 state already fixes the time"
+                    .into(),
+            ));
+        }
         self.stop_time = stop;
-        self.time = 0.0;
-        self.last_successful_time = 0.0;
+        self.start_time = start;
+        self.time = start;
+        self.last_successful_time = start;
         Ok(())
     }
 
-    /// Builds (or rebuilds after parameter changes) the simulation on the instance's threads
-    /// and applies the inputs set so far.
+    /// Builds (or rebuilds after parameter changes) the simulation on the instance's threads.
     fn build(&mut self) -> FmiResult<()> {
         if !self.stale && self.sim.is_some() {
             return Ok(());
         }
         let params = &self.params;
-        let mut sim = self
+        let sim = self
             .pool
             .install(|| Simulation::new(params))
             .map_err(|e| FmiError::Solver(format!("cannot build the model: {e}")))?;
-        if self.inputs.gravity_set {
-            sim.set_gravity(self.inputs.gravity);
-        }
-        for (g, d) in self.inputs.displacement.iter().enumerate() {
-            sim.set_group_displacement(g, *d);
-        }
-        for (r, f) in self.inputs.load.iter().enumerate() {
-            sim.set_load(r, *f);
-        }
         self.event(&format!(
             "built the model: {} particles, {} bonds, solver step {:.4e} s",
             sim.particles(),
@@ -485,13 +649,9 @@ impl Instance {
         self.refresh_outputs()
     }
 
-    /// Recomputes the cached outputs that are cheap (probes, reactions, counters) and marks
-    /// the energies stale (they cost a pass over all bonds: computed on demand). Fails, leaving
-    /// the cache alone, if any value is not finite.
-    fn refresh_outputs(&mut self) -> FmiResult<()> {
-        let Some(sim) = &self.sim else {
-            return Ok(());
-        };
+    /// The cheap outputs (probes, reactions, counters) of a simulation, in table order (None
+    /// for the others); an error if one is not finite.
+    fn cheap_outputs(&self, sim: &Simulation) -> FmiResult<Vec<Option<f64>>> {
         let table = &self.table;
         let new: Vec<Option<f64>> = self.pool.install(|| {
             table
@@ -514,38 +674,62 @@ impl Instance {
             return Err(FmiError::Solver(format!(
                 "output {} became non-finite at t = {}",
                 self.table.vars[i].name,
-                sim.time()
+                self.start_time + sim.time()
             )));
         }
+        Ok(new)
+    }
+
+    fn store_outputs(&mut self, new: Vec<Option<f64>>) {
         for (o, n) in self.outputs.iter_mut().zip(new) {
             if let Some(n) = n {
                 *o = n;
             }
         }
         self.energies_fresh = false;
+    }
+
+    /// Recomputes the cached outputs that are cheap and marks the energies stale (they cost a
+    /// pass over all bonds: computed on demand). Fails, leaving the cache alone, if any value is
+    /// not finite.
+    fn refresh_outputs(&mut self) -> FmiResult<()> {
+        let Some(sim) = &self.sim else {
+            return Ok(());
+        };
+        let new = self.cheap_outputs(sim)?;
+        self.store_outputs(new);
         Ok(())
     }
 
-    /// Brings the cached energies up to date. After a failed step they describe the state the
-    /// solver stopped in if finite, else they keep the last finite values.
-    fn update_energies(&mut self) {
+    /// Brings the cached energies up to date; a non-finite energy is an error (never a stale
+    /// or NaN value handed out with fmi2OK).
+    fn update_energies(&mut self) -> FmiResult<()> {
         if self.energies_fresh {
-            return;
+            return Ok(());
         }
         let Some(sim) = &self.sim else {
-            return;
+            return Ok(());
         };
         let (ke, se) = self
             .pool
             .install(|| (sim.kinetic_energy(), sim.strain_energy()));
+        for (name, e) in [("kinetic_energy", ke), ("strain_energy", se)] {
+            if !e.is_finite() {
+                return Err(FmiError::Solver(format!(
+                    "{name} is {e} at t = {}: the state is not valid (see the solver's earlier messages)",
+                    self.time
+                )));
+            }
+        }
         for (v, o) in self.table.vars.iter().zip(self.outputs.iter_mut()) {
             match v.quantity {
-                Quantity::KineticEnergy if ke.is_finite() => *o = ke,
-                Quantity::StrainEnergy if se.is_finite() => *o = se,
+                Quantity::KineticEnergy => *o = ke,
+                Quantity::StrainEnergy => *o = se,
                 _ => {}
             }
         }
         self.energies_fresh = true;
+        Ok(())
     }
 
     /// fmi2EnterInitializationMode: builds the simulation.
@@ -562,7 +746,18 @@ impl Instance {
         self.require("fmi2ExitInitializationMode", &[Mode::InitializationMode])?;
         self.build()?;
         self.mode = Mode::StepComplete;
-        self.event("exited initialization mode");
+        self.event(&format!(
+            "exited initialization mode: gravity from {}; boundary displacement inputs {}",
+            match self.inputs.gravity_source {
+                GravitySource::Scene => "the scene's law (gravity inputs ignored)",
+                GravitySource::Inputs => "the inputs gravity_*",
+            },
+            match self.inputs.boundary_timing {
+                BoundaryTiming::AtStepStart =>
+                    "act at the start of each step (held or extrapolated)",
+                BoundaryTiming::AtStepEnd => "are reached at the end of each step",
+            }
+        ));
         Ok(())
     }
 
@@ -582,6 +777,8 @@ impl Instance {
         self.stale = true;
         self.outputs = vec![0.0; self.table.vars.len()];
         self.energies_fresh = false;
+        self.gravity_ignored_warned = false;
+        self.start_time = 0.0;
         self.time = 0.0;
         self.last_successful_time = 0.0;
         self.stop_time = None;
@@ -630,6 +827,8 @@ impl Instance {
             Quantity::Gravity(k) => self.inputs.gravity[k],
             Quantity::GroupDisplacement(g, k) => self.inputs.displacement[g][k],
             Quantity::Load(r, k) => self.inputs.load[r][k],
+            Quantity::GravitySource => self.inputs.gravity_source as i32 as f64,
+            Quantity::BoundaryTiming => self.inputs.boundary_timing as i32 as f64,
             _ => self.outputs[vr as usize],
         })
     }
@@ -650,7 +849,7 @@ impl Instance {
                 matches!(v.quantity, Quantity::KineticEnergy | Quantity::StrainEnergy)
             })
         }) {
-            self.update_energies();
+            self.update_energies()?;
         }
         for (r, o) in vr.iter().zip(out.iter_mut()) {
             *o = self.value(*r, VarType::Real)?;
@@ -684,27 +883,32 @@ impl Instance {
         Mode::StepComplete,
     ];
 
-    /// fmi2SetReal: checks every value first and applies none if one is bad.
+    /// Checks that variable `r` may be set now (not an output, a parameter only before
+    /// fmi2ExitInitializationMode).
+    fn settable(&self, r: u32, ty: VarType) -> FmiResult<&super::variables::Variable> {
+        let v = self.var(r, ty)?;
+        match v.causality {
+            Causality::Output => Err(FmiError::Invalid(format!(
+                "'{}' (value reference {r}) is an output and cannot be set",
+                v.name
+            ))),
+            Causality::Parameter if self.mode == Mode::StepComplete => {
+                Err(FmiError::Invalid(format!(
+                    "'{}' (value reference {r}) is a fixed parameter: it can be set only before \
+                     fmi2ExitInitializationMode",
+                    v.name
+                )))
+            }
+            _ => Ok(v),
+        }
+    }
+
+    /// fmi2SetReal: checks every value first and applies none if one is bad. Inputs take effect
+    /// at the next doStep.
     pub fn set_real(&mut self, vr: &[u32], values: &[f64]) -> FmiResult<()> {
         self.require("fmi2SetReal", &Self::SET_MODES)?;
         for (&r, &x) in vr.iter().zip(values) {
-            let v = self.var(r, VarType::Real)?;
-            match v.causality {
-                Causality::Output => {
-                    return Err(FmiError::Invalid(format!(
-                        "'{}' (value reference {r}) is an output and cannot be set",
-                        v.name
-                    )))
-                }
-                Causality::Parameter if self.mode == Mode::StepComplete => {
-                    return Err(FmiError::Invalid(format!(
-                        "'{}' (value reference {r}) is a fixed parameter: it can be set only before \
-                         fmi2ExitInitializationMode",
-                        v.name
-                    )))
-                }
-                _ => {}
-            }
+            let v = self.settable(r, VarType::Real)?;
             if !x.is_finite() {
                 return Err(FmiError::Invalid(format!(
                     "'{}' (value reference {r}) cannot be set to {x}: values must be finite (nothing was set)",
@@ -721,30 +925,26 @@ impl Instance {
                 })?;
             }
         }
-        let mut gravity_changed = false;
         for (&r, &x) in vr.iter().zip(values) {
             let q = self.table.vars[r as usize].quantity;
             match q {
                 Quantity::Gravity(k) => {
-                    if self.inputs.gravity[k].to_bits() != x.to_bits() {
-                        self.inputs.gravity[k] = x;
-                        gravity_changed = true;
+                    if self.inputs.gravity_source == GravitySource::Scene
+                        && x != self.inputs.gravity[k]
+                        && !self.gravity_ignored_warned
+                    {
+                        self.gravity_ignored_warned = true;
+                        self.warn(format!(
+                            "fmi2SetReal: gravity_{} set to {x} while gravity_source = 1 (the \
+                             scene's gravity law): the gravity inputs are ignored; set the \
+                             parameter gravity_source = 2 to drive gravity from the inputs",
+                            ["x", "y", "z"][k]
+                        ));
                     }
+                    self.inputs.gravity[k] = x;
                 }
-                Quantity::GroupDisplacement(g, k) => {
-                    self.inputs.displacement[g][k] = x;
-                    let d = self.inputs.displacement[g];
-                    if let Some(sim) = &mut self.sim {
-                        sim.set_group_displacement(g, d);
-                    }
-                }
-                Quantity::Load(l, k) => {
-                    self.inputs.load[l][k] = x;
-                    let f = self.inputs.load[l];
-                    if let Some(sim) = &mut self.sim {
-                        sim.set_load(l, f);
-                    }
-                }
+                Quantity::GroupDisplacement(g, k) => self.inputs.displacement[g][k] = x,
+                Quantity::Load(l, k) => self.inputs.load[l][k] = x,
                 _ => {
                     VariableTable::set_parameter(&mut self.params, q, x)
                         .map_err(FmiError::Invalid)?;
@@ -752,29 +952,40 @@ impl Instance {
                 }
             }
         }
-        if gravity_changed {
-            if !self.inputs.gravity_set {
-                self.event("gravity set by the host: the scene's gravity law is replaced by a constant vector");
-            }
-            self.inputs.gravity_set = true;
-            let g = self.inputs.gravity;
-            if let Some(sim) = &mut self.sim {
-                sim.set_gravity(g);
-            }
-        }
         Ok(())
     }
 
-    /// fmi2SetInteger: the only Integer variables are outputs.
-    pub fn set_integer(&mut self, vr: &[u32]) -> FmiResult<()> {
+    /// fmi2SetInteger: the Integer parameters gravity_source and boundary_input_timing.
+    pub fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> FmiResult<()> {
         self.require("fmi2SetInteger", &Self::SET_MODES)?;
-        if let Some(&r) = vr.first() {
-            let v = self.var(r, VarType::Integer)?;
-            return Err(FmiError::Invalid(format!(
-                "'{}' (value reference {r}) is an output and cannot be set",
-                v.name
-            )));
+        let mut gravity = self.inputs.gravity_source;
+        let mut timing = self.inputs.boundary_timing;
+        for (&r, &x) in vr.iter().zip(values) {
+            let v = self.settable(r, VarType::Integer)?;
+            let bad = || {
+                FmiError::Invalid(format!(
+                    "'{}' (value reference {r}) cannot be set to {x}: allowed values are 1 and 2 \
+                     (nothing was set)",
+                    v.name
+                ))
+            };
+            match v.quantity {
+                Quantity::GravitySource => gravity = GravitySource::from_int(x).ok_or_else(bad)?,
+                Quantity::BoundaryTiming => timing = BoundaryTiming::from_int(x).ok_or_else(bad)?,
+                _ => {
+                    return Err(FmiError::Invalid(format!(
+                        "'{}' (value reference {r}) cannot be set",
+                        v.name
+                    )))
+                }
+            }
         }
+        if gravity != self.inputs.gravity_source {
+            self.event(&format!("gravity_source = {}", gravity as i32));
+            self.gravity_ignored_warned = false;
+        }
+        self.inputs.gravity_source = gravity;
+        self.inputs.boundary_timing = timing;
         Ok(())
     }
 
@@ -789,7 +1000,83 @@ impl Instance {
         }
     }
 
-    /// fmi2DoStep: advances from t to exactly t + h with the solver's stable sub-steps.
+    /// fmi2SetRealInputDerivatives: first derivatives of the Real inputs for the next doStep
+    /// (canInterpolateInputs): over the step an input is `u + du/dt (tau - t)`. They apply to
+    /// that one step and are cleared after it.
+    pub fn set_real_input_derivatives(
+        &mut self,
+        vr: &[u32],
+        order: &[i32],
+        values: &[f64],
+    ) -> FmiResult<()> {
+        self.require(
+            "fmi2SetRealInputDerivatives",
+            &[Mode::InitializationMode, Mode::StepComplete],
+        )?;
+        for ((&r, &o), &x) in vr.iter().zip(order).zip(values) {
+            let v = self.var(r, VarType::Real)?;
+            if v.causality != Causality::Input {
+                return Err(FmiError::Invalid(format!(
+                    "'{}' (value reference {r}) is not an input: only inputs have derivatives",
+                    v.name
+                )));
+            }
+            if o != 1 {
+                return Err(FmiError::Invalid(format!(
+                    "derivative order {o} of '{}': only first derivatives are used \
+                     (linear interpolation over the step; nothing was set)",
+                    v.name
+                )));
+            }
+            if !x.is_finite() {
+                return Err(FmiError::Invalid(format!(
+                    "the derivative of '{}' cannot be {x}: values must be finite (nothing was set)",
+                    v.name
+                )));
+            }
+        }
+        for (&r, &x) in vr.iter().zip(values) {
+            match self.table.vars[r as usize].quantity {
+                Quantity::Gravity(k) => self.inputs.gravity_rate[k] = x,
+                Quantity::GroupDisplacement(g, k) => self.inputs.displacement_rate[g][k] = x,
+                Quantity::Load(l, k) => self.inputs.load_rate[l][k] = x,
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// Hands the inputs to the simulation for the step [time, time + h] (simulation time).
+    fn apply_inputs(sim: &mut Simulation, inputs: &Inputs, h: f64) {
+        let t = sim.time();
+        if inputs.gravity_source == GravitySource::Inputs {
+            sim.set_gravity_linear(inputs.gravity, inputs.gravity_rate, t);
+        }
+        for (r, (f, df)) in inputs.load.iter().zip(&inputs.load_rate).enumerate() {
+            sim.set_load(r, *f, *df, t);
+        }
+        for (g, (d, dd)) in inputs
+            .displacement
+            .iter()
+            .zip(&inputs.displacement_rate)
+            .enumerate()
+        {
+            match inputs.boundary_timing {
+                BoundaryTiming::AtStepStart => {
+                    let end = [d[0] + dd[0] * h, d[1] + dd[1] * h, d[2] + dd[2] * h];
+                    sim.set_group_motion(g, *d, end, t, t + h);
+                }
+                BoundaryTiming::AtStepEnd => {
+                    let now = sim.group_displacement(g);
+                    sim.set_group_motion(g, now, *d, t, t + h);
+                }
+            }
+        }
+    }
+
+    /// fmi2DoStep: advances from t to exactly t + h with the solver's stable sub-steps. A step
+    /// that would take more than `solver.max_steps` solver steps is refused before any work,
+    /// leaving the instance as it was.
     pub fn do_step(&mut self, t: f64, h: f64) -> FmiResult<()> {
         self.require("fmi2DoStep", &[Mode::StepComplete])?;
         if !(h.is_finite() && h > 0.0) {
@@ -811,17 +1098,29 @@ impl Instance {
                 )));
             }
         }
+        let sim_end = t_end - self.start_time;
         let sim = self
             .sim
             .as_mut()
             .ok_or_else(|| FmiError::Fatal("no model built".into()))?;
-        let res = self.pool.install(|| sim.advance_to(t_end));
+        let steps = ((sim_end - sim.time()) / sim.max_dt()).ceil();
+        let limit = MAX_STEPS_PER_DO_STEP;
+        if steps.is_nan() || steps > limit as f64 {
+            return Err(FmiError::Invalid(format!(
+                "doStep(t = {t:e}, h = {h:e}) would take {steps:e} solver steps of {:e} s, more than \
+                 the limit of {limit:e}: use shorter communication steps (nothing was done)",
+                sim.max_dt()
+            )));
+        }
+        Self::apply_inputs(sim, &self.inputs, sim_end - sim.time());
+        let res = self.pool.install(|| sim.advance_to(sim_end));
         let res = match res {
             Ok(n) => self.refresh_outputs().map(|_| n),
             Err(e) => Err(FmiError::Solver(format!(
                 "step from t = {t} to {t_end} failed: {e}"
             ))),
         };
+        self.inputs.clear_rates();
         match res {
             Ok(n) => {
                 self.time = t_end;
@@ -836,10 +1135,13 @@ impl Instance {
         }
     }
 
-    /// fmi2CancelStep: doStep is synchronous.
+    /// fmi2CancelStep: doStep is synchronous (it never returns fmi2Pending), so there is never a
+    /// step to cancel; the work of one doStep is bounded by `solver.max_steps` instead.
     pub fn cancel_step(&mut self) -> FmiResult<()> {
         Err(FmiError::Invalid(
-            "fmi2CancelStep is not supported: fmi2DoStep is synchronous and never returns fmi2Pending".into(),
+            "fmi2CancelStep is not supported: fmi2DoStep is synchronous and never returns \
+             fmi2Pending (the work of one step is bounded by solver.max_steps)"
+                .into(),
         ))
     }
 
@@ -893,14 +1195,15 @@ impl Instance {
         )))
     }
 
-    const STATE_MODES: [Mode; 4] = [
+    const STATE_MODES: [Mode; 5] = [
+        Mode::Instantiated,
         Mode::InitializationMode,
         Mode::StepComplete,
         Mode::Error,
         Mode::Terminated,
     ];
 
-    /// fmi2GetFMUstate.
+    /// fmi2GetFMUstate: allowed from fmi2Instantiate on (the model is built for it if needed).
     pub fn get_fmu_state(&mut self) -> FmiResult<FmuState> {
         self.require("fmi2GetFMUstate", &Self::STATE_MODES)?;
         if self.stale {
@@ -910,53 +1213,106 @@ impl Instance {
             .sim
             .as_ref()
             .ok_or_else(|| FmiError::Fatal("no model built".into()))?;
+        let state = self.pool.install(|| sim.state());
         let s = FmuState {
+            guid: self.guid.clone(),
+            particles: sim.particles() as u64,
+            initialized: self.mode != Mode::Instantiated,
             params: self.params.clone(),
             inputs: self.inputs.clone(),
+            start_time: self.start_time,
             time: self.time,
             last_successful_time: self.last_successful_time,
             stop_time: self.stop_time,
-            sim: sim.state(),
+            sim: state,
         };
         self.event(&format!("FMU state captured at t = {}", self.time));
         Ok(s)
     }
 
-    /// fmi2SetFMUstate: rebuilds the model if the state's parameters differ; after an error
-    /// or termination the instance continues in StepComplete.
+    /// Refuses a state of another FMU, another model or with non-finite values.
+    fn check_state(&self, s: &FmuState) -> FmiResult<()> {
+        let bad = |m: String| FmiError::Invalid(format!("the FMU state is refused: {m}"));
+        if s.guid != self.guid {
+            return Err(bad(format!(
+                "it was taken from another FMU (GUID {}, this FMU has {})",
+                s.guid, self.guid
+            )));
+        }
+        if !s.inputs.fits(&self.scene) {
+            return Err(bad("its inputs belong to another scene".into()));
+        }
+        if !state_is_finite(s) {
+            return Err(bad("it holds non-finite values".into()));
+        }
+        if let Err(e) = s.params.validate() {
+            return Err(bad(format!("its parameters are invalid: {e}")));
+        }
+        Ok(())
+    }
+
+    /// fmi2SetFMUstate: restores everything or nothing. The model is rebuilt (on the instance's
+    /// threads) if the state's parameters differ; a state taken after initialisation continues
+    /// in StepComplete (fmusim's --initial-fmu-state-file steps right after restoring), one taken
+    /// before it returns to Instantiated.
     pub fn set_fmu_state(&mut self, s: &FmuState) -> FmiResult<()> {
         self.require("fmi2SetFMUstate", &Self::STATE_MODES)?;
-        if s.inputs.displacement.len() != self.scene.boundaries.len()
-            || s.inputs.load.len() != self.scene.loads.len()
-        {
-            return Err(FmiError::Invalid(
-                "the FMU state belongs to another scene".into(),
-            ));
-        }
-        if s.params != self.params || self.sim.is_none() || self.stale {
-            let mut p = s.params.clone();
-            std::mem::swap(&mut p, &mut self.params);
-            self.stale = true;
-            if let Err(e) = self.build() {
-                self.params = p;
-                self.stale = true;
-                return Err(e);
+        self.check_state(s)?;
+        let rebuild = s.params != self.params || self.sim.is_none() || self.stale;
+        let restore = |sim: &mut Simulation| -> FmiResult<()> {
+            if sim.particles() as u64 != s.particles {
+                return Err(FmiError::Invalid(format!(
+                    "the FMU state is refused: it has {} particles, this model {}",
+                    s.particles,
+                    sim.particles()
+                )));
+            }
+            sim.set_state(&s.sim)
+                .map_err(|e| FmiError::Invalid(format!("cannot restore the FMU state: {e}")))
+        };
+        if rebuild {
+            let params = &s.params;
+            let mut sim = self.pool.install(|| Simulation::new(params)).map_err(|e| {
+                FmiError::Invalid(format!("cannot build the FMU state's model: {e}"))
+            })?;
+            self.pool.install(|| restore(&mut sim))?;
+            let outputs = self.cheap_outputs(&sim)?;
+            self.sim = Some(sim);
+            self.params = s.params.clone();
+            self.stale = false;
+            self.store_outputs(outputs);
+        } else {
+            let sim = self
+                .sim
+                .as_mut()
+                .ok_or_else(|| FmiError::Fatal("no model built".into()))?;
+            let previous = self.pool.install(|| sim.state());
+            let restored = self.pool.install(|| restore(sim));
+            let outputs = restored.and_then(|_| {
+                let sim = self.sim.as_ref().expect("built");
+                self.cheap_outputs(sim)
+            });
+            match outputs {
+                Ok(o) => self.store_outputs(o),
+                Err(e) => {
+                    let sim = self.sim.as_mut().expect("built");
+                    self.pool
+                        .install(|| sim.set_state(&previous))
+                        .map_err(|e| FmiError::Fatal(format!("cannot roll back: {e}")))?;
+                    return Err(e);
+                }
             }
         }
-        let sim = self
-            .sim
-            .as_mut()
-            .ok_or_else(|| FmiError::Fatal("no model built".into()))?;
-        sim.set_state(&s.sim)
-            .map_err(|e| FmiError::Invalid(format!("cannot restore the FMU state: {e}")))?;
         self.inputs = s.inputs.clone();
+        self.start_time = s.start_time;
         self.time = s.time;
         self.last_successful_time = s.last_successful_time;
         self.stop_time = s.stop_time;
-        self.refresh_outputs()?;
-        if self.mode != Mode::InitializationMode {
-            self.mode = Mode::StepComplete;
-        }
+        self.mode = match (s.initialized, self.mode) {
+            (false, _) => Mode::Instantiated,
+            (true, Mode::InitializationMode) => Mode::InitializationMode,
+            (true, _) => Mode::StepComplete,
+        };
         self.event(&format!("FMU state restored at t = {}", self.time));
         Ok(())
     }
@@ -966,23 +1322,40 @@ impl Instance {
         Ok(())
     }
 
-    /// fmi2SerializeFMUstate: magic, format version, the GUID, then bincode of the state.
+    fn bincode() -> impl bincode::Options {
+        use bincode::Options;
+        bincode::DefaultOptions::new()
+            .with_fixint_encoding()
+            .with_little_endian()
+            .with_limit(MAX_STATE_BYTES)
+    }
+
+    /// fmi2SerializeFMUstate: magic, format version, the GUID, the payload length, bincode of
+    /// the state, and a CRC-32 of everything before it.
     pub fn serialize_fmu_state(&self, s: &FmuState) -> FmiResult<Vec<u8>> {
-        let guid = guid(&self.scene);
-        let mut out = Vec::new();
+        use bincode::Options;
+        let payload = Self::bincode()
+            .serialize(s)
+            .map_err(|e| FmiError::Invalid(format!("cannot serialise the FMU state: {e}")))?;
+        let g = self.guid.as_bytes();
+        let mut out = Vec::with_capacity(32 + g.len() + payload.len());
         out.extend_from_slice(STATE_MAGIC);
         out.extend_from_slice(&STATE_VERSION.to_le_bytes());
-        out.extend_from_slice(&(guid.len() as u32).to_le_bytes());
-        out.extend_from_slice(guid.as_bytes());
-        bincode::serialize_into(&mut out, s)
-            .map_err(|e| FmiError::Invalid(format!("cannot serialise the FMU state: {e}")))?;
+        out.extend_from_slice(&(g.len() as u32).to_le_bytes());
+        out.extend_from_slice(g);
+        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        out.extend_from_slice(&payload);
+        let crc = crc32fast::hash(&out);
+        out.extend_from_slice(&crc.to_le_bytes());
         Ok(out)
     }
 
-    /// fmi2DeSerializeFMUstate: checks magic, version and GUID.
+    /// fmi2DeSerializeFMUstate: checks the length, checksum, magic, version and GUID before
+    /// decoding, and the decoded state against this FMU.
     pub fn deserialize_fmu_state(&self, bytes: &[u8]) -> FmiResult<FmuState> {
+        use bincode::Options;
         let bad = |m: &str| FmiError::Invalid(format!("not a serialised state of this FMU: {m}"));
-        if bytes.len() < 16 || &bytes[..8] != STATE_MAGIC {
+        if bytes.len() < 28 || &bytes[..8] != STATE_MAGIC {
             return Err(bad("bad magic"));
         }
         let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
@@ -991,18 +1364,33 @@ impl Instance {
                 "format version {version}, expected {STATE_VERSION}"
             )));
         }
-        let n = u32::from_le_bytes(bytes[12..16].try_into().expect("4 bytes")) as usize;
-        let g = bytes.get(16..16 + n).ok_or_else(|| bad("truncated"))?;
-        if g != guid(&self.scene).as_bytes() {
+        let (body, crc) = bytes.split_at(bytes.len() - 4);
+        if crc32fast::hash(body).to_le_bytes() != crc {
+            return Err(bad(
+                "checksum mismatch (the data was truncated or corrupted)",
+            ));
+        }
+        let n = u32::from_le_bytes(body[12..16].try_into().expect("4 bytes")) as usize;
+        let g = body.get(16..16 + n).ok_or_else(|| bad("truncated"))?;
+        if g != self.guid.as_bytes() {
             return Err(bad("it was made by an FMU with another GUID"));
         }
-        let s: FmuState = bincode::deserialize(&bytes[16 + n..])
-            .map_err(|e| bad(&format!("cannot decode: {e}")))?;
-        if s.inputs.displacement.len() != self.scene.boundaries.len()
-            || s.inputs.load.len() != self.scene.loads.len()
-        {
-            return Err(bad("it belongs to another scene"));
+        let len_at = 16 + n;
+        let len = body
+            .get(len_at..len_at + 8)
+            .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+            .ok_or_else(|| bad("truncated"))?;
+        let payload = &body[len_at + 8..];
+        if payload.len() as u64 != len {
+            return Err(bad(&format!(
+                "the payload has {} bytes, its header says {len}",
+                payload.len()
+            )));
         }
+        let s: FmuState = Self::bincode()
+            .deserialize(payload)
+            .map_err(|e| bad(&format!("cannot decode: {e}")))?;
+        self.check_state(&s)?;
         Ok(s)
     }
 
@@ -1033,6 +1421,90 @@ mod tests {
         assert!(resource_dir("http://example/x").is_err());
         assert!(resource_dir("/tmp/x").is_err());
         assert!(resource_dir("file:///tmp/%zz").is_err());
+    }
+
+    /// An initialised instance of tests/data/small2d.json, stepped 3 times.
+    fn small2d() -> Instance {
+        let dir = std::env::temp_dir().join(format!("mps-instance-unit-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene =
+            Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/small2d.json"))
+                .unwrap();
+        std::fs::write(dir.join("scene.json"), scene.to_json()).unwrap();
+        let uri = format!("file://{}", dir.display());
+        let mut i = Instance::instantiate(
+            "unit",
+            true,
+            &guid(&scene),
+            Some(&uri),
+            Arc::new(NoLogger),
+            false,
+        )
+        .unwrap();
+        i.setup_experiment(0.0, None).unwrap();
+        i.enter_initialization_mode().unwrap();
+        i.exit_initialization_mode().unwrap();
+        for k in 0..3 {
+            i.do_step(k as f64 * 0.002, 0.002).unwrap();
+        }
+        i
+    }
+
+    fn first_x(s: &mut FmuState) -> &mut f64 {
+        match &mut s.sim {
+            SimState::D2(w) => &mut w.x[5][0],
+            SimState::D3(w) => &mut w.x[5][0],
+        }
+    }
+
+    #[test]
+    fn a_failed_set_fmu_state_changes_nothing() {
+        // Issue 8.8: a rejected fmi2SetFMUstate overwrote time, inputs and particles. A state
+        // of this FMU whose particles are not finite passes the header checks, is restored into
+        // the model, found bad (non-finite outputs) and rolled back.
+        let mut i = small2d();
+        let mut good = i.get_fmu_state().unwrap();
+        i.do_step(0.006, 0.002).unwrap();
+        let before = i.get_fmu_state().unwrap();
+        *first_x(&mut good) = f64::NAN;
+        good.time = 123.0;
+        let e = i.set_fmu_state(&good).unwrap_err();
+        assert!(e.message().contains("non-finite"), "{}", e.message());
+        assert_eq!(i.time(), 0.008);
+        assert_eq!(i.mode(), Mode::StepComplete);
+        assert_eq!(
+            i.get_fmu_state().unwrap(),
+            before,
+            "state changed by a failed call"
+        );
+        // Parameters that differ go through a rebuild: refused the same way.
+        let mut other = before.clone();
+        other.params.bodies[0].material.density *= 2.0;
+        *first_x(&mut other) = f64::INFINITY;
+        assert!(i.set_fmu_state(&other).is_err());
+        assert_eq!(i.get_fmu_state().unwrap(), before);
+    }
+
+    #[test]
+    fn non_finite_energies_are_errors_not_stale_values() {
+        // Issue 8.10: a NaN energy was handed out as the last finite value with fmi2OK.
+        let mut i = small2d();
+        let ke = i.table().by_name("kinetic_energy").unwrap().value_reference;
+        let mut out = [0.0];
+        i.get_real(&[ke], &mut out).unwrap();
+        assert!(out[0].is_finite());
+        // (A state with a NaN is refused on restore: poke the model directly.)
+        match i.sim.as_mut().unwrap() {
+            Simulation::D2(m) => m.world.p.v[7][1] = f64::NAN,
+            Simulation::D3(m) => m.world.p.v[7][1] = f64::NAN,
+        }
+        i.energies_fresh = false;
+        let e = i.get_real(&[ke], &mut out).unwrap_err();
+        assert!(
+            e.message().contains("kinetic_energy is NaN"),
+            "{}",
+            e.message()
+        );
     }
 
     #[test]

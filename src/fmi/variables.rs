@@ -88,6 +88,11 @@ pub enum Quantity {
     StrainEnergy,
     /// Output: solver steps taken (Integer).
     Steps,
+    /// Parameter (Integer): 1 = the scene's gravity law, 2 = gravity from the inputs.
+    GravitySource,
+    /// Parameter (Integer): 1 = a boundary displacement input acts at the start of the step
+    /// (FMI semantics), 2 = it is reached at the end of the step.
+    BoundaryTiming,
 }
 
 /// One ScalarVariable.
@@ -342,8 +347,8 @@ impl VariableTable {
                     Some("m"),
                     format!(
                         "Prescribed displacement of boundary group '{}', {axis} component (acts on \
-                         the group's held axes only). The value set before a doStep is reached at the \
-                         end of that step; the group moves linearly in between",
+                         the group's held axes only). When it acts is set by boundary_input_timing \
+                         (default: at the start of the step, held or extrapolated)",
                         group.name
                     ),
                     Some(0.0),
@@ -362,7 +367,7 @@ impl VariableTable {
                     Some("N"),
                     format!(
                         "Total external force on load region '{}', {axis} component, spread evenly \
-                         over its particles; held constant during a doStep",
+                         over its particles; held over each step, or linear with its input derivative",
                         load.name
                     ),
                     Some(0.0),
@@ -447,6 +452,40 @@ impl VariableTable {
             "Solver time steps taken since the start".into(),
             None,
             Quantity::Steps,
+        );
+        // FMU settings (Integer parameters), last so that the value references above stay put.
+        push(
+            "gravity_source".into(),
+            Integer,
+            Parameter,
+            Fixed,
+            None,
+            format!(
+                "Where gravity comes from: 1 = the scene's gravity law{ramp}, the inputs gravity_* \
+                 are ignored (a warning is logged if they are set to other values); 2 = the inputs \
+                 gravity_*, held over each step or linear with fmi2SetRealInputDerivatives. \
+                 Default: 1 for a scene with a time law, else 2"
+            ),
+            Some(if scene.gravity.paper_ramp_period.is_some() {
+                1.0
+            } else {
+                2.0
+            }),
+            Quantity::GravitySource,
+        );
+        push(
+            "boundary_input_timing".into(),
+            Integer,
+            Parameter,
+            Fixed,
+            None,
+            "When a boundary displacement input set before doStep(t, h) acts: 1 = at t, held over \
+             the step or extrapolated with its derivative (FMI 2.0 semantics, what generic masters \
+             expect); 2 = it is reached at t + h, moving linearly from where the group is (smooth, \
+             but one communication step behind the master's signal)"
+                .into(),
+            Some(1.0),
+            Quantity::BoundaryTiming,
         );
         // Scene names are unique per kind (loads excepted); should two variables still share a
         // name, the later ones get a suffix so that the table is always valid.

@@ -59,8 +59,24 @@ impl<const D: usize> GroupMotion<D> {
 pub struct LoadRegion<const D: usize> {
     pub name: String,
     pub members: Vec<u32>,
-    /// Total force on the region (N), spread evenly over its particles.
+    /// Total force on the region at time `t_ref` (N), spread evenly over its particles.
     pub force: Vect<D>,
+    /// Rate of change of the total force (N/s): the force is `force + rate (t - t_ref)`, so that
+    /// an FMU input with a derivative (fmi2SetRealInputDerivatives) varies over a step.
+    pub rate: Vect<D>,
+    /// Time at which the force equals `force` (s).
+    pub t_ref: f64,
+}
+
+impl<const D: usize> LoadRegion<D> {
+    /// Total force at time t (N).
+    pub fn force_at(&self, t: f64) -> Vect<D> {
+        if self.rate == Vect::<D>::zeros() {
+            self.force
+        } else {
+            self.force + self.rate * (t - self.t_ref)
+        }
+    }
 }
 
 /// Gravity as a function of time.
@@ -71,6 +87,13 @@ pub enum GravityLaw<const D: usize> {
     Constant(Vect<D>),
     /// The paper's ramp, Eq. (46): g(t) = G (0.5 - 0.5 cos(5 pi t / T)) for t <= 0.2 T, G after.
     PaperRamp { full: Vect<D>, period: f64 },
+    /// Linear in time: `start + rate (t - t0)` (m/s^2, m/s^3, s); an FMU host's gravity input
+    /// with its derivative over one communication step.
+    Linear {
+        start: Vect<D>,
+        rate: Vect<D>,
+        t0: f64,
+    },
 }
 
 impl<const D: usize> GravityLaw<D> {
@@ -79,6 +102,7 @@ impl<const D: usize> GravityLaw<D> {
         match *self {
             GravityLaw::Constant(g) => g,
             GravityLaw::PaperRamp { full, period } => full * paper_ramp(t, period),
+            GravityLaw::Linear { start, rate, t0 } => start + rate * (t - t0),
         }
     }
 }

@@ -251,6 +251,8 @@ where
                 name,
                 members,
                 force: Vect::<D>::zeros(),
+                rate: Vect::<D>::zeros(),
+                t_ref: 0.0,
             });
         }
         let contact = Contact::new(
@@ -425,7 +427,7 @@ where
         let load_pp: Vec<Vect<D>> = self
             .loads
             .iter()
-            .map(|l| l.force / (l.members.len().max(1) as f64))
+            .map(|l| l.force_at(t) / (l.members.len().max(1) as f64))
             .collect();
         let inputs = StepInputs {
             dt,
@@ -462,8 +464,8 @@ where
     }
 
     /// Advances to t_end with equal sub-steps no longer than `max_dt`, landing exactly on t_end.
-    /// Group displacements move linearly from their current value to their target over
-    /// [time, t_end]. Returns the number of steps taken.
+    /// Group displacements follow their motions (see [`World::set_group_motion`]). Returns the
+    /// number of steps taken.
     pub fn advance_to(&mut self, t_end: f64) -> Result<u64, SimError> {
         if !t_end.is_finite() {
             return Err(SimError::Invalid(format!(
@@ -475,14 +477,6 @@ where
         if h <= 0.0 {
             return Ok(0);
         }
-        for g in &mut self.groups {
-            g.motion = GroupMotion {
-                from: g.motion.at(t0),
-                to: g.motion.to,
-                t_from: t0,
-                t_to: t_end,
-            };
-        }
         let n = ((h / self.max_dt()) * (1.0 - 1e-12)).ceil().max(1.0) as u64;
         let dt = h / n as f64;
         for k in 1..=n {
@@ -492,19 +486,36 @@ where
         Ok(n)
     }
 
-    /// Sets the displacement a group reaches at the end of the next `advance_to` (m).
-    pub fn set_group_target(&mut self, g: usize, d: Vect<D>) {
-        self.groups[g].motion.to = d;
+    /// Sets the displacement law of a group (m, s): linear from `motion.from` at `motion.t_from`
+    /// to `motion.to` at `motion.t_to`, constant outside.
+    pub fn set_group_motion(&mut self, g: usize, motion: GroupMotion<D>) {
+        self.groups[g].motion = motion;
     }
 
-    /// Sets the total external force on a load region (N).
-    pub fn set_load(&mut self, r: usize, f: Vect<D>) {
-        self.loads[r].force = f;
+    /// Moves a group linearly from where it is now to displacement `d` (m) at time `t_end` (s):
+    /// a smooth prescribed motion for a caller that knows the next target.
+    pub fn ramp_group_to(&mut self, g: usize, d: Vect<D>, t_end: f64) {
+        let t = self.time;
+        let from = self.groups[g].motion.at(t);
+        self.groups[g].motion = GroupMotion {
+            from,
+            to: d,
+            t_from: t,
+            t_to: t_end,
+        };
     }
 
-    /// Replaces the gravity law by a constant vector (m/s^2).
-    pub fn set_gravity(&mut self, g: Vect<D>) {
-        self.gravity = GravityLaw::Constant(g);
+    /// Sets the total external force on a load region (N) at time `t_ref` and its rate (N/s).
+    pub fn set_load(&mut self, r: usize, f: Vect<D>, rate: Vect<D>, t_ref: f64) {
+        let l = &mut self.loads[r];
+        l.force = f;
+        l.rate = rate;
+        l.t_ref = t_ref;
+    }
+
+    /// Replaces the gravity law.
+    pub fn set_gravity(&mut self, law: GravityLaw<D>) {
+        self.gravity = law;
     }
 
     /// Kinetic energy of translation and rotation (J).
@@ -675,6 +686,18 @@ where
                 "state does not belong to this scene (sizes differ)".into(),
             ));
         }
+        // Checked before anything changes: a refused state leaves the world as it was.
+        let finite = |v: &Vect<D>| v.iter().all(|c| c.is_finite());
+        if !(s.time.is_finite()
+            && s.x.iter().all(finite)
+            && s.v.iter().all(finite)
+            && s.w.iter().all(<Space as Dim<D>>::ang_finite)
+            && s.w0.iter().all(|w| w.is_finite()))
+        {
+            return Err(SimError::Invalid(
+                "state holds non-finite positions, velocities or bond weights".into(),
+            ));
+        }
         self.time = s.time;
         self.steps = s.steps;
         self.p.u.clone_from(&s.u);
@@ -700,6 +723,7 @@ where
         }
         for (l, f) in self.loads.iter_mut().zip(&s.loads) {
             l.force = *f;
+            l.rate = Vect::<D>::zeros();
         }
         self.gravity = s.gravity;
         if let Some(o) = self.update_forces() {

@@ -71,8 +71,11 @@ def test_case1_gravity_ramp_as_input_matches_closed_form():
     )
     probes = [p for p in scene["probes"]]
     names = [f"{p['name']}.{c}" for p in probes for c in ("ux", "uz")]
+    # gravity_source = 2: gravity from the inputs (the scene's own law, the same ramp, is the
+    # default of this scene).
     res = simulate_fmu(fmu, stop_time=scene["end_time"], output_interval=scene["output_interval"],
-                       input=signals, output=names + ["support.reaction_z"])
+                       input=signals, output=names + ["support.reaction_z"],
+                       start_values={"gravity_source": 2})
     assert math.isclose(res["time"][-1], scene["end_time"])
     m = scene["bodies"][0]["material"]
     rho, e, nu, gz = m["density"], m["young"], m["poisson"], abs(g[2])
@@ -91,6 +94,28 @@ def test_case1_gravity_ramp_as_input_matches_closed_form():
     print(f"case 1 through fmpy: error ux {err_ux:.4f}, uz {err_uz:.4f}")
     assert err_ux <= 0.03, stations
     assert err_uz <= 0.03, stations
+
+
+def test_case1_scene_gravity_law_survives_interpolated_inputs():
+    # Issue 8.9: fmpy interpolates a constant input -9.81 to -9.809999999999999, which used to
+    # replace the scene's Eq. (46) ramp by sudden gravity (support reaction 18.9 N -> 239 N at
+    # t = 0.03 s). With the default gravity_source = 1 the scene's law stays in force.
+    fmu = fmu_path("case1_column")
+    scene = scene_of(fmu)
+    g = scene["gravity"]["vector"]
+    t = np.array([0.0, 0.0137, 0.05])
+    signals = np.array(
+        [(ti, -0.0, g[1], g[2]) for ti in t],
+        dtype=[("time", np.float64), ("gravity_x", np.float64), ("gravity_y", np.float64),
+               ("gravity_z", np.float64)],
+    )
+    kw = dict(stop_time=0.03, output_interval=0.001, output=["support.reaction_z"])
+    with_input = simulate_fmu(fmu, input=signals, **kw)
+    without = simulate_fmu(fmu, **kw)
+    assert np.array_equal(with_input["support.reaction_z"], without["support.reaction_z"])
+    # The ramp: at t = 0.03 s the reaction is far below the weight it reaches at full gravity.
+    print(f"support reaction at t = 0.03 s: {without['support.reaction_z'][-1]:.2f} N")
+    assert abs(without["support.reaction_z"][-1]) < 50.0
 
 
 def dominant_frequency(t, u, f_lo, f_hi):

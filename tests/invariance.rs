@@ -393,8 +393,10 @@ fn small2d_far_from_the_origin_runs_like_at_the_origin() {
             m0.world.critical_dt(),
             &format!("small2d {model:?} at 1e7"),
         );
-        m0.world.set_load(0, Vect::<2>::new(0.0, -2.0));
-        m1.world.set_load(0, Vect::<2>::new(0.0, -2.0));
+        m0.world
+            .set_load(0, Vect::<2>::new(0.0, -2.0), Vect::<2>::zeros(), 0.0);
+        m1.world
+            .set_load(0, Vect::<2>::new(0.0, -2.0), Vect::<2>::zeros(), 0.0);
         m0.world.advance_to(0.05).unwrap();
         m1.world.advance_to(0.05).unwrap();
         assert_eq!(m0.world.steps, m1.world.steps);

@@ -689,7 +689,7 @@ where
         // Checked before anything changes: a refused state leaves the world as it was.
         let finite = |v: &Vect<D>| v.iter().all(|c| c.is_finite());
         if !(s.time.is_finite()
-            && s.x.iter().all(finite)
+            && s.u.iter().all(finite)
             && s.v.iter().all(finite)
             && s.w.iter().all(<Space as Dim<D>>::ang_finite)
             && s.w0.iter().all(|w| w.is_finite()))

@@ -61,7 +61,9 @@ fn check_resolution<const D: usize>(
     });
     // Spacing of adjacent doubles near `far`, bounded above by far * eps.
     let ulp = far * f64::EPSILON;
-    if !(ulp <= l0 * 2f64.powi(-MIN_SPACING_BITS)) {
+    // Written so that a NaN or infinite coordinate (far = inf) is refused as well.
+    let resolved = ulp <= l0 * 2f64.powi(-MIN_SPACING_BITS);
+    if !resolved {
         let bits = (l0 / ulp).log2().floor().max(0.0);
         return Err(SimError::Invalid(format!(
             "body '{name}' (bodies[{b}]): a coordinate of {far:.3e} m leaves only {bits} significant bits for the particle spacing {l0:.3e} m (at least {MIN_SPACING_BITS} are needed; positions there are rounded to {ulp:.1e} m); place the body nearer the origin"

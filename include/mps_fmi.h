@@ -195,7 +195,7 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c,
                                         fmi2Real *dvUnknown);
 
 /*
- fmi2SetRealInputDerivatives: not supported (canInterpolateInputs covers the displacements).
+ fmi2SetRealInputDerivatives: first derivatives of the inputs for the next step (canInterpolateInputs).
  */
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c,
                                        const fmi2ValueReference *vr,

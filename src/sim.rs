@@ -125,6 +125,17 @@ impl Simulation {
     pub fn probe_displacement(&self, k: usize) -> [f64; 3] {
         with!(self, m => to3(&m.probe_displacement(k)))
     }
+    /// Velocity of probe k (m/s).
+    pub fn probe_velocity(&self, k: usize) -> [f64; 3] {
+        with!(self, m => to3(&m.probe_velocity(k)))
+    }
+    /// Mean displacement (m) and mean velocity (m/s) of the particles load region r acts on.
+    pub fn load_motion(&self, r: usize) -> ([f64; 3], [f64; 3]) {
+        with!(self, m => {
+            let (u, v) = m.world.load_motion(r);
+            (to3(&u), to3(&v))
+        })
+    }
     /// Reaction force of boundary group g on the body (N).
     pub fn group_reaction(&self, g: usize) -> [f64; 3] {
         with!(self, m => to3(&m.world.groups[g].reaction))

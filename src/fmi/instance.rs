@@ -653,12 +653,17 @@ impl Instance {
     /// for the others); an error if one is not finite.
     fn cheap_outputs(&self, sim: &Simulation) -> FmiResult<Vec<Option<f64>>> {
         let table = &self.table;
+        let n_loads = self.scene.loads.len();
         let new: Vec<Option<f64>> = self.pool.install(|| {
+            let loads: Vec<_> = (0..n_loads).map(|r| sim.load_motion(r)).collect();
             table
                 .vars
                 .iter()
                 .map(|v| match v.quantity {
                     Quantity::ProbeDisplacement(p, k) => Some(sim.probe_displacement(p)[k]),
+                    Quantity::ProbeVelocity(p, k) => Some(sim.probe_velocity(p)[k]),
+                    Quantity::LoadDisplacement(r, k) => Some(loads[r].0[k]),
+                    Quantity::LoadVelocity(r, k) => Some(loads[r].1[k]),
                     Quantity::Reaction(g, k) => Some(sim.group_reaction(g)[k]),
                     Quantity::FractureCount => Some(sim.broken_bonds() as f64),
                     Quantity::Steps => Some(sim.steps() as f64),

@@ -88,6 +88,12 @@ pub enum Quantity {
     StrainEnergy,
     /// Output: solver steps taken (Integer).
     Steps,
+    /// Output: velocity of probe k (m/s).
+    ProbeVelocity(usize, usize),
+    /// Output: mean displacement of the particles of load region r (m).
+    LoadDisplacement(usize, usize),
+    /// Output: mean velocity of the particles of load region r (m/s).
+    LoadVelocity(usize, usize),
     /// Parameter (Integer): 1 = the scene's gravity law, 2 = gravity from the inputs.
     GravitySource,
     /// Parameter (Integer): 1 = a boundary displacement input acts at the start of the step
@@ -129,12 +135,18 @@ pub struct UnitDef {
 }
 
 /// Every unit a variable may carry.
-pub const UNITS: [UnitDef; 8] = [
+pub const UNITS: [UnitDef; 9] = [
     UnitDef {
         name: "m",
         kg: 0,
         m: 1,
         s: 0,
+    },
+    UnitDef {
+        name: "m/s",
+        kg: 0,
+        m: 1,
+        s: -1,
     },
     UnitDef {
         name: "N",
@@ -487,6 +499,59 @@ impl VariableTable {
             Some(1.0),
             Quantity::BoundaryTiming,
         );
+        // Coupling outputs (after the settings, so that earlier value references stay put).
+        for (p, probe) in scene.probes.iter().enumerate() {
+            let n = name_part(&probe.name);
+            for (k, axis) in AXES.iter().enumerate().take(d) {
+                push(
+                    format!("{n}.v{axis}"),
+                    Real,
+                    Output,
+                    Continuous,
+                    Some("m/s"),
+                    format!(
+                        "Velocity of probe '{}' at reference point {:?}, {axis} component",
+                        probe.name, probe.point
+                    ),
+                    None,
+                    Quantity::ProbeVelocity(p, k),
+                );
+            }
+        }
+        for (r, load) in scene.loads.iter().enumerate() {
+            let n = name_part(&load.name);
+            for (k, axis) in AXES.iter().enumerate().take(d) {
+                push(
+                    format!("{n}.u{axis}"),
+                    Real,
+                    Output,
+                    Continuous,
+                    Some("m"),
+                    format!(
+                        "Mean displacement of the particles load region '{}' acts on, {axis} \
+                         component: the motion work-conjugate to its force input",
+                        load.name
+                    ),
+                    None,
+                    Quantity::LoadDisplacement(r, k),
+                );
+            }
+            for (k, axis) in AXES.iter().enumerate().take(d) {
+                push(
+                    format!("{n}.v{axis}"),
+                    Real,
+                    Output,
+                    Continuous,
+                    Some("m/s"),
+                    format!(
+                        "Mean velocity of the particles load region '{}' acts on, {axis} component",
+                        load.name
+                    ),
+                    None,
+                    Quantity::LoadVelocity(r, k),
+                );
+            }
+        }
         // Scene names are unique per kind (loads excepted); should two variables still share a
         // name, the later ones get a suffix so that the table is always valid.
         let mut seen = std::collections::HashSet::new();

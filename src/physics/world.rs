@@ -629,15 +629,40 @@ where
     /// Displacement at a reference point near particle i: u_i + H_i (X - X_i), with the
     /// displacement gradient H_i from the corrected gradient operator (exact for linear fields).
     pub fn displacement_at(&self, i: usize, point: &Vect<D>) -> Vect<D> {
-        let ui = self.p.displacement(i);
+        self.interpolate_at(i, point, |j| self.p.displacement(j))
+    }
+
+    /// Velocity at a reference point near particle i (m/s), interpolated like
+    /// [`World::displacement_at`].
+    pub fn velocity_at(&self, i: usize, point: &Vect<D>) -> Vect<D> {
+        self.interpolate_at(i, point, |j| self.p.v[j])
+    }
+
+    /// A particle field f at a reference point near particle i: f_i plus the corrected gradient
+    /// of f at i (the operator's K^-1) times the offset from i's reference position.
+    fn interpolate_at(&self, i: usize, point: &Vect<D>, f: impl Fn(usize) -> Vect<D>) -> Vect<D> {
+        let fi = f(i);
         let mut g = super::dim::Mat::<D>::zeros();
         for b in self.bonds.of(i) {
             let r0 = self.bonds.r0[b];
             let om = self.bonds.w0[b] / r0.norm_squared();
-            let du = self.p.u[self.bonds.nbr[b] as usize] - ui;
-            g += (du * om) * r0.transpose();
+            let df = f(self.bonds.nbr[b] as usize) - fi;
+            g += (df * om) * r0.transpose();
         }
-        ui + g * self.op.k_inv[i] * (point - self.p.x0[i])
+        fi + g * self.op.k_inv[i] * (point - self.p.x0[i])
+    }
+
+    /// Mean displacement (m) and mean velocity (m/s) of the particles of load region r: the
+    /// motion work-conjugate to the region's force (spread evenly over the same particles).
+    pub fn load_motion(&self, r: usize) -> (Vect<D>, Vect<D>) {
+        let m = &self.loads[r].members;
+        let n = m.len().max(1) as f64;
+        let (mut u, mut v) = (Vect::<D>::zeros(), Vect::<D>::zeros());
+        for &i in m {
+            u += self.p.displacement(i as usize);
+            v += self.p.v[i as usize];
+        }
+        (u / n, v / n)
     }
 
     /// Index of the particle of `body` (any body when None) nearest to a reference point, and

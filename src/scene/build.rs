@@ -167,4 +167,10 @@ where
         let p = &self.probes[k];
         self.world.displacement_at(p.particle, &p.point)
     }
+
+    /// Velocity of probe k (m/s).
+    pub fn probe_velocity(&self, k: usize) -> Vect<D> {
+        let p = &self.probes[k];
+        self.world.velocity_at(p.particle, &p.point)
+    }
 }

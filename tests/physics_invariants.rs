@@ -34,7 +34,7 @@ fn rigid_rotation_produces_no_force_3d() {
         let rot = UnitQuaternion::from_scaled_axis(Vector3::new(0.3, -0.5, 0.4));
         let mut s = w.state();
         for i in 0..w.len() {
-            s.x[i] = rot * w.p.x0[i] + Vector3::new(0.1, 0.2, -0.3);
+            s.u[i] = rot * w.p.x0[i] + Vector3::new(0.1, 0.2, -0.3) - w.p.x0[i];
             s.q[i] = rot;
         }
         w.set_state(&s).unwrap();
@@ -54,7 +54,8 @@ fn rigid_rotation_produces_no_force_2d() {
         let a = 0.9f64;
         for i in 0..w.len() {
             let x = w.p.x0[i];
-            s.x[i] = Vect::<2>::new(a.cos() * x.x - a.sin() * x.y, a.sin() * x.x + a.cos() * x.y);
+            s.u[i] =
+                Vect::<2>::new(a.cos() * x.x - a.sin() * x.y, a.sin() * x.x + a.cos() * x.y) - x;
             s.q[i] = a;
         }
         w.set_state(&s).unwrap();
@@ -89,7 +90,7 @@ where
         let mut w = free_world::<D>(n, model);
         let mut s = w.state();
         for i in 0..w.len() {
-            s.x[i] = w.p.x0[i] + eps * w.p.x0[i];
+            s.u[i] = eps * w.p.x0[i];
         }
         w.set_state(&s).unwrap();
         let half: Vec<f64> = (0..D).map(|a| 0.5 * (n[a] - 1) as f64 * w.l0).collect();
@@ -121,7 +122,7 @@ fn corrected_gradient_interpolates_linear_fields_exactly() {
     let c = Vector3::new(1e-4, -2e-4, 3e-4);
     let mut s = w.state();
     for i in 0..w.len() {
-        s.x[i] = w.p.x0[i] + a * w.p.x0[i] + c;
+        s.u[i] = a * w.p.x0[i] + c;
     }
     w.set_state(&s).unwrap();
     let p = Vector3::new(0.03, 0.025, -0.02); // on the surface x = +3 l0
@@ -144,7 +145,7 @@ where
     let mut s = w.state();
     for i in 0..w.len() {
         for a in 0..D {
-            s.x[i][a] += 1e-3 * w.l0 * rng.next();
+            s.u[i][a] += 1e-3 * w.l0 * rng.next();
             s.v[i][a] = 0.05 * rng.next();
         }
     }
@@ -182,7 +183,7 @@ fn paper_local_normalisation_does_not_conserve_momentum() {
     let mut rng = Rng(7);
     for i in 0..w.len() {
         for a in 0..3 {
-            s.x[i][a] += 1e-3 * w.l0 * rng.next();
+            s.u[i][a] += 1e-3 * w.l0 * rng.next();
         }
     }
     w.set_state(&s).unwrap();
@@ -205,7 +206,7 @@ where
     let mut s = w.state();
     for i in 0..w.len() {
         for a in 0..D {
-            s.x[i][a] += 1e-6 * w.l0 * rng.next();
+            s.u[i][a] += 1e-6 * w.l0 * rng.next();
         }
     }
     w.set_state(&s).unwrap();

@@ -1462,8 +1462,8 @@ mod tests {
 
     fn first_x(s: &mut FmuState) -> &mut f64 {
         match &mut s.sim {
-            SimState::D2(w) => &mut w.x[5][0],
-            SimState::D3(w) => &mut w.x[5][0],
+            SimState::D2(w) => &mut w.u[5][0],
+            SimState::D3(w) => &mut w.u[5][0],
         }
     }
 

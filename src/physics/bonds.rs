@@ -27,7 +27,8 @@ pub struct Bonds<const D: usize> {
 }
 
 impl<const D: usize> Bonds<D> {
-    /// Finds all pairs of the same body within `re` with a cell grid (O(N)).
+    /// Finds all pairs of the same body within `re` (positive weight) with a cell grid (O(N)).
+    /// Symmetric: r0_ji = -r0_ij exactly and the weights of both directions are equal.
     pub fn build(x0: &[Vect<D>], body: &[u32], re: f64) -> Self {
         let mut b = Bonds::<D> {
             start: Vec::with_capacity(x0.len() + 1),
@@ -70,9 +71,15 @@ impl<const D: usize> Bonds<D> {
             near.sort_unstable();
             for &j in &near {
                 let r0 = x0[j as usize] - x0[i];
-                b.nbr.push(j);
-                b.w0.push(weight(r0.norm(), re));
-                b.r0.push(r0);
+                // A pair at exactly re (or coinciding) has zero weight: it is no bond, since a
+                // zero weight marks a broken bond. |r0| = re to round-off would otherwise make
+                // the bond count, and so the surface flags, depend on where the body sits.
+                let w = weight(r0.norm(), re);
+                if w > 0.0 {
+                    b.nbr.push(j);
+                    b.w0.push(w);
+                    b.r0.push(r0);
+                }
             }
             b.start.push(b.nbr.len() as u32);
         }

@@ -21,6 +21,7 @@ use super::grid::CellGrid;
 #[allow(unused_imports)]
 use super::par::*;
 use super::params::ContactOptions;
+use super::particles::rel;
 use crate::par_iter_mut;
 
 /// Magnitude of the repulsive contact force at distance r (N) for the pair stiffness k_c.
@@ -78,8 +79,8 @@ pub struct Contact<const D: usize> {
     pub surface: Vec<bool>,
     /// Indices of the surface particles (ascending).
     pub surface_ids: Vec<u32>,
-    /// Positions of the surface particles at the last build.
-    x_build: Vec<Vect<D>>,
+    /// Displacements of the surface particles at the last build.
+    u_build: Vec<Vect<D>>,
     /// Pair list per surface particle (CSR over `surface_ids`): neighbour and whether the pair
     /// repels (false: checked for overlap only).
     start: Vec<u32>,
@@ -140,7 +141,7 @@ impl<const D: usize> Contact<D> {
             n_max,
             surface: vec![false; n],
             surface_ids: Vec::new(),
-            x_build: Vec::new(),
+            u_build: Vec::new(),
             start: vec![0],
             nbr: Vec::new(),
             repel: Vec::new(),
@@ -189,27 +190,30 @@ impl<const D: usize> Contact<D> {
         self.collect_surface();
     }
 
-    /// Rebuilds the pair list if motion (or a change of the surface) requires it.
-    pub fn update_list(&mut self, x: &[Vect<D>], body: &[u32], bonds: &Bonds<D>) {
+    /// Rebuilds the pair list if motion (or a change of the surface) requires it. `x` are the
+    /// current positions (binning only), `u` the displacements.
+    pub fn update_list(&mut self, x: &[Vect<D>], u: &[Vect<D>], body: &[u32], bonds: &Bonds<D>) {
         if !self.needs_rebuild {
             let lim = 0.5 * self.opts.skin * self.l0;
             let lim2 = lim * lim;
             let moved = self
                 .surface_ids
                 .iter()
-                .zip(&self.x_build)
-                .any(|(&i, xb)| (x[i as usize] - xb).norm_squared() > lim2);
+                .zip(&self.u_build)
+                .any(|(&i, ub)| (u[i as usize] - ub).norm_squared() > lim2);
             if !moved {
                 return;
             }
         }
-        self.rebuild(x, body, bonds);
+        self.rebuild(x, u, body, bonds);
     }
 
-    fn rebuild(&mut self, x: &[Vect<D>], body: &[u32], bonds: &Bonds<D>) {
+    fn rebuild(&mut self, x: &[Vect<D>], u: &[Vect<D>], body: &[u32], bonds: &Bonds<D>) {
         self.searches += 1;
         self.needs_rebuild = false;
         let reach = (1.0 + self.opts.skin) * self.l0;
+        // Binned by the current positions x = X + u: far from the origin their differences are
+        // rounded, which only moves pairs at the edge of the skin, never one within l0.
         let grid = CellGrid::build(x, Some(&self.surface_ids), reach);
         let ids = &self.surface_ids;
         let same_body = self.same_body;
@@ -241,7 +245,7 @@ impl<const D: usize> Contact<D> {
             }
             self.start.push(self.nbr.len() as u32);
         }
-        self.x_build = ids.iter().map(|&i| x[i as usize]).collect();
+        self.u_build = ids.iter().map(|&i| u[i as usize]).collect();
     }
 
     /// Adds the contact forces to `force` and checks for overlaps (pairs closer than
@@ -249,7 +253,8 @@ impl<const D: usize> Contact<D> {
     /// are then incomplete.
     pub fn add_forces(
         &mut self,
-        x: &[Vect<D>],
+        x0: &[Vect<D>],
+        u: &[Vect<D>],
         body: &[u32],
         force: &mut [Vect<D>],
     ) -> Option<Overlap> {
@@ -272,13 +277,12 @@ impl<const D: usize> Contact<D> {
             .enumerate()
             .for_each(|(s, (f_out, h_out))| {
                 let i = ids[s] as usize;
-                let xi = x[i];
                 let bi = body[i] as usize;
                 let mut acc = Vect::<D>::zeros();
                 let mut hit = None;
                 for e in start[s] as usize..start[s + 1] as usize {
                     let j = nbr[e] as usize;
-                    let r = x[j] - xi;
+                    let r = rel(x0, u, i, j);
                     let r2 = r.norm_squared();
                     if r2 >= l02 {
                         continue;
@@ -312,7 +316,7 @@ impl<const D: usize> Contact<D> {
     }
 
     /// Contact potential energy of the current state (J), each pair once.
-    pub fn energy(&self, x: &[Vect<D>], body: &[u32]) -> f64 {
+    pub fn energy(&self, x0: &[Vect<D>], u: &[Vect<D>], body: &[u32]) -> f64 {
         let mut total = 0.0;
         for (s, &i) in self.surface_ids.iter().enumerate() {
             let i = i as usize;
@@ -322,20 +326,20 @@ impl<const D: usize> Contact<D> {
                     continue;
                 }
                 let k = self.k0[body[i] as usize * self.n_bodies + body[j] as usize];
-                total += potential(k, self.l0, (x[j] - x[i]).norm());
+                total += potential(k, self.l0, rel(x0, u, i, j).norm());
             }
         }
         total
     }
 
     /// Pairs in contact (closer than l0, repelling) now, each pair once.
-    pub fn pairs_in_contact(&self, x: &[Vect<D>]) -> usize {
+    pub fn pairs_in_contact(&self, x0: &[Vect<D>], u: &[Vect<D>]) -> usize {
         let mut count = 0;
         for (s, &i) in self.surface_ids.iter().enumerate() {
             let i = i as usize;
             for e in self.start[s] as usize..self.start[s + 1] as usize {
                 let j = self.nbr[e] as usize;
-                if j > i && self.repel[e] && (x[j] - x[i]).norm_squared() < self.l0 * self.l0 {
+                if j > i && self.repel[e] && rel(x0, u, i, j).norm_squared() < self.l0 * self.l0 {
                     count += 1;
                 }
             }
@@ -345,13 +349,13 @@ impl<const D: usize> Contact<D> {
 
     /// Pairs closer than l0 now, each pair once: (different bodies, same body across a broken
     /// bond), the latter whether they repel or not.
-    pub fn pairs_by_kind(&self, x: &[Vect<D>], body: &[u32]) -> (usize, usize) {
+    pub fn pairs_by_kind(&self, x0: &[Vect<D>], u: &[Vect<D>], body: &[u32]) -> (usize, usize) {
         let (mut inter, mut same) = (0, 0);
         for (s, &i) in self.surface_ids.iter().enumerate() {
             let i = i as usize;
             for e in self.start[s] as usize..self.start[s + 1] as usize {
                 let j = self.nbr[e] as usize;
-                if j > i && (x[j] - x[i]).norm_squared() < self.l0 * self.l0 {
+                if j > i && rel(x0, u, i, j).norm_squared() < self.l0 * self.l0 {
                     if body[i] == body[j] {
                         same += 1;
                     } else {

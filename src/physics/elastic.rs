@@ -79,11 +79,7 @@ where
     /// K_i^-1 (pseudo-inverse when degenerate) and the projector on the span of the intact
     /// bonds (exactly the identity when the neighbourhood has full rank).
     pub fn shape_inverse_span(&self, bonds: &Bonds<D>, i: usize) -> (Mat<D>, Mat<D>) {
-        let mut k = Mat::<D>::zeros();
-        for b in bonds.of(i) {
-            let r0 = bonds.r0[b];
-            k += r0 * r0.transpose() * (bonds.w0[b] / r0.norm_squared());
-        }
+        let k = shape_tensor(bonds, i);
         let k_inv = <Space as Dim<D>>::sym_pinv(&k);
         let p = k_inv * k;
         let span = if (p - Mat::<D>::identity()).amax() < 1e-8 {
@@ -111,12 +107,7 @@ where
     /// K_i^-1 for the current (unbroken) bonds of particle i; pseudo-inverse when the
     /// neighbourhood is degenerate (e.g. a single layer of particles).
     pub fn shape_inverse(&self, bonds: &Bonds<D>, i: usize) -> Mat<D> {
-        let mut k = Mat::<D>::zeros();
-        for b in bonds.of(i) {
-            let r0 = bonds.r0[b];
-            k += r0 * r0.transpose() * (bonds.w0[b] / r0.norm_squared());
-        }
-        <Space as Dim<D>>::sym_pinv(&k)
+        <Space as Dim<D>>::sym_pinv(&shape_tensor(bonds, i))
     }
 
     /// Stiffness kappa of the stabilisation springs: `stabilisation` times the paper's
@@ -161,7 +152,7 @@ where
             .zip(par_iter_mut!(s.bmat))
             .enumerate()
             .for_each(|(i, (f_out, b_out))| {
-                let xi = p.x[i];
+                let ui = p.u[i];
                 let mut g = Mat::<D>::zeros();
                 for b in bonds.of(i) {
                     let w0 = bonds.w0[b];
@@ -170,7 +161,8 @@ where
                     }
                     let r0 = bonds.r0[b];
                     let om = w0 / r0.norm_squared();
-                    let r = p.x[bonds.nbr[b] as usize] - xi;
+                    // r = r0 + (u_j - u_i): at rest exactly r0, so G = K bit for bit.
+                    let r = r0 + (p.u[bonds.nbr[b] as usize] - ui);
                     g += (r * om) * r0.transpose();
                 }
                 let f = g * self.k_inv[i];
@@ -183,7 +175,7 @@ where
         let bm = &s.bmat;
         // Pass 2: f_i = -dE/dx_i = sum_j w/|r0|^2 [(B_i + B_j) r0_ij + 2 kappa V r_ij].
         par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
-            let xi = p.x[i];
+            let ui = p.u[i];
             let bi = bm[i];
             let two_kv = 2.0 * self.kappa(self.lame[p.body[i] as usize].0) * v;
             let mut acc = Vect::<D>::zeros();
@@ -195,7 +187,7 @@ where
                 let j = bonds.nbr[b] as usize;
                 let r0 = bonds.r0[b];
                 let om = w0 / r0.norm_squared();
-                acc += ((bi + bm[j]) * r0 + (p.x[j] - xi) * two_kv) * om;
+                acc += ((bi + bm[j]) * r0 + (r0 + (p.u[j] - ui)) * two_kv) * om;
             }
             *f_out = acc;
         });
@@ -221,18 +213,25 @@ where
         par_iter_mut!(s.pressure)
             .enumerate()
             .for_each(|(i, p_out)| {
-                let xi = p.x[i];
+                let ui = p.u[i];
                 let mut sum = 0.0;
                 for b in bonds.of(i) {
                     let w0 = bonds.w0[b];
                     if w0 == 0.0 {
                         continue;
                     }
-                    let l0 = bonds.r0[b].norm();
-                    let r = (p.x[bonds.nbr[b] as usize] - xi).norm();
+                    let r0 = bonds.r0[b];
+                    let l0 = r0.norm();
+                    let r = (r0 + (p.u[bonds.nbr[b] as usize] - ui)).norm();
                     sum += w0 * (r - l0) / l0;
                 }
-                *p_out = -self.lame[p.body[i] as usize].1 * d / nd(i) * sum;
+                // A particle without bonds (n_i = 0 in the local model) has no volumetric
+                // strain: sum = 0, and 0 / 0 must not make its pressure NaN.
+                *p_out = if sum == 0.0 {
+                    0.0
+                } else {
+                    -self.lame[p.body[i] as usize].1 * d / nd(i) * sum
+                };
             });
         let pr = &s.pressure;
         let v = self.volume;
@@ -243,7 +242,7 @@ where
             .zip(par_iter_mut!(torque))
             .enumerate()
             .for_each(|(i, (f_out, t_out))| {
-                let xi = p.x[i];
+                let ui = p.u[i];
                 let qi = p.q[i];
                 let c = 2.0 * d / nd(i) * v;
                 let mu2 = 2.0 * self.lame[p.body[i] as usize].0;
@@ -257,7 +256,7 @@ where
                     let j = bonds.nbr[b] as usize;
                     let r0 = bonds.r0[b];
                     let l02 = r0.norm_squared();
-                    let rij = p.x[j] - xi;
+                    let rij = r0 + (p.u[j] - ui);
                     let rot = <Space as Dim<D>>::midpoint(&qi, &p.q[j]);
                     let u = rij - <Space as Dim<D>>::rotate(&rot, &r0);
                     let fs = u * (c * mu2 * w0 / l02);
@@ -280,7 +279,7 @@ where
         let mut total = 0.0;
         for i in 0..p.len() {
             let (mu, lambda) = self.lame[p.body[i] as usize];
-            let xi = p.x[i];
+            let ui = p.u[i];
             match self.model {
                 ElasticModel::Corrected => {
                     let f = s.defgrad.get(i).copied().unwrap_or_else(Mat::<D>::identity);
@@ -291,7 +290,7 @@ where
                     for b in bonds.of(i) {
                         let r0 = bonds.r0[b];
                         let om = bonds.w0[b] / r0.norm_squared();
-                        let res = (p.x[bonds.nbr[b] as usize] - xi) - f * r0;
+                        let res = (r0 + (p.u[bonds.nbr[b] as usize] - ui)) - f * r0;
                         total += 0.5 * kv * om * res.norm_squared();
                     }
                 }
@@ -303,10 +302,13 @@ where
                     };
                     let c = 2.0 * d / nd * v;
                     for b in bonds.of(i) {
+                        if bonds.w0[b] == 0.0 {
+                            continue;
+                        }
                         let j = bonds.nbr[b] as usize;
                         let r0 = bonds.r0[b];
                         let rot = <Space as Dim<D>>::midpoint(&p.q[i], &p.q[j]);
-                        let u = (p.x[j] - xi) - <Space as Dim<D>>::rotate(&rot, &r0);
+                        let u = (r0 + (p.u[j] - ui)) - <Space as Dim<D>>::rotate(&rot, &r0);
                         total += 0.25 * c * 2.0 * mu * bonds.w0[b] / r0.norm_squared()
                             * u.norm_squared();
                     }
@@ -319,4 +321,20 @@ where
         }
         total
     }
+}
+
+/// Shape tensor K_i = sum_j w0/|r0|^2 r0 r0^T over the intact bonds, formed with the same
+/// expression as the deformation-gradient sum, so that F = G K^-1 is the identity to round-off
+/// in the reference state.
+pub fn shape_tensor<const D: usize>(bonds: &Bonds<D>, i: usize) -> Mat<D> {
+    let mut k = Mat::<D>::zeros();
+    for b in bonds.of(i) {
+        let w0 = bonds.w0[b];
+        if w0 == 0.0 {
+            continue;
+        }
+        let r0 = bonds.r0[b];
+        k += (r0 * (w0 / r0.norm_squared())) * r0.transpose();
+    }
+    k
 }

@@ -9,30 +9,30 @@ use super::par::*;
 use crate::par_iter_mut;
 
 /// Finds the bonds to break at the current positions and breaks them. The test compares squared
-/// lengths, |r_ij|^2 > (1 + eps_max)^2 |r0_ij|^2, which is the same in both stored directions to
-/// the last bit (r_ji = -r_ij exactly), so both directions of a bond break in the same step
+/// lengths, |r_ij|^2 > (1 + eps_max)^2 |r0_ij|^2 with r_ij = r0_ij + (u_j - u_i) (displacements
+/// `u`), which is the same in both stored directions to the last bit (r_ji = -r_ij exactly), so both directions of a bond break in the same step
 /// whatever the thread count. `flag` is scratch (one byte per particle). Returns the particles
 /// that lost bonds (ascending) and the number of pairs broken.
 pub fn break_bonds<const D: usize>(
-    x: &[Vect<D>],
+    u: &[Vect<D>],
     bonds: &mut Bonds<D>,
     eps_max: f64,
     flag: &mut Vec<u8>,
 ) -> (Vec<usize>, u64) {
-    let n = x.len();
+    let n = u.len();
     flag.resize(n, 0);
     let limit = (1.0 + eps_max) * (1.0 + eps_max);
     {
         let b = &*bonds;
         // Gather pass: each particle tests its own bonds and writes only its own flag.
         par_iter_mut!(flag[..]).enumerate().for_each(|(i, f)| {
-            let xi = x[i];
+            let ui = u[i];
             let mut hit = 0u8;
             for k in b.of(i) {
                 if b.w0[k] == 0.0 {
                     continue;
                 }
-                let r = x[b.nbr[k] as usize] - xi;
+                let r = b.r0[k] + (u[b.nbr[k] as usize] - ui);
                 if r.norm_squared() > limit * b.r0[k].norm_squared() {
                     hit = 1;
                     break;
@@ -48,13 +48,13 @@ pub fn break_bonds<const D: usize>(
             continue;
         }
         touched.push(i);
-        let xi = x[i];
+        let ui = u[i];
         for k in bonds.of(i) {
             if bonds.w0[k] == 0.0 {
                 continue;
             }
             let j = bonds.nbr[k] as usize;
-            let r = x[j] - xi;
+            let r = bonds.r0[k] + (u[j] - ui);
             if r.norm_squared() > limit * bonds.r0[k].norm_squared() {
                 bonds.w0[k] = 0.0;
                 // Each pair is counted once, from its lower index (the other direction is found
@@ -106,16 +106,17 @@ pub fn components<const D: usize>(bonds: &Bonds<D>, n: usize) -> Vec<u32> {
     (0..n as u32).map(|i| find(&mut parent, i)).collect()
 }
 
-/// Largest strain (|r_ij| - |r0_ij|) / |r0_ij| over the intact bonds, and the particle that has it.
-pub fn max_bond_strain<const D: usize>(x: &[Vect<D>], bonds: &Bonds<D>) -> (f64, usize) {
+/// Largest strain (|r_ij| - |r0_ij|) / |r0_ij| over the intact bonds, and the particle that has
+/// it; `u` are the displacements.
+pub fn max_bond_strain<const D: usize>(u: &[Vect<D>], bonds: &Bonds<D>) -> (f64, usize) {
     let mut best = (f64::NEG_INFINITY, 0);
-    for i in 0..x.len() {
+    for i in 0..u.len() {
         for k in bonds.of(i) {
             if bonds.w0[k] == 0.0 {
                 continue;
             }
             let l = bonds.r0[k].norm();
-            let e = ((x[bonds.nbr[k] as usize] - x[i]).norm() - l) / l;
+            let e = ((bonds.r0[k] + (u[bonds.nbr[k] as usize] - u[i])).norm() - l) / l;
             if e > best.0 {
                 best = (e, i);
             }

@@ -40,6 +40,7 @@ where
     let dt = inp.dt;
     let Particles {
         x0,
+        u,
         x,
         v,
         q,
@@ -49,22 +50,24 @@ where
         fix,
         ..
     } = p;
-    par_iter_mut!(x)
+    par_iter_mut!(u)
+        .zip(par_iter_mut!(x))
         .zip(par_iter_mut!(v))
         .zip(par_iter_mut!(q))
         .zip(par_iter_mut!(w))
         .zip(par_iter_mut!(bad))
         .enumerate()
-        .for_each(|(i, ((((xi, vi), qi), wi), bi))| {
+        .for_each(|(i, (((((ui, xi), vi), qi), wi), bi))| {
             let m = mass[i];
             let mut f = force[i] + inp.gravity * m - *vi * (inp.damping * m);
             let l = inp.load_of[i];
             if l != u32::MAX {
                 f += inp.load_per_particle[l as usize];
             }
-            // Eq. (37) and (38)
+            // Eq. (37) and (38), on the displacement u = x - X (full precision far from the
+            // origin; x is derived).
             let mut vn = *vi + f * (dt / m);
-            let mut xn = *xi + vn * dt;
+            let mut un = *ui + vn * dt;
             let flags = fix[i];
             if flags != 0 {
                 let g = inp.group_of[i];
@@ -75,7 +78,7 @@ where
                 };
                 for k in 0..D {
                     if flags & FIX_AXIS[k] != 0 {
-                        xn[k] = x0[i][k] + d_end[k];
+                        un[k] = d_end[k];
                         vn[k] = (d_end[k] - d_start[k]) / dt;
                     }
                 }
@@ -88,14 +91,15 @@ where
                 );
                 *qi = <Space as Dim<D>>::advance(qi, wi, dt);
             }
-            let moved = (xn - *xi).norm();
+            let moved = (un - *ui).norm();
             *bi = u8::from(
                 moved.is_nan()
                     || moved > inp.max_move
                     || !vn.iter().all(|c| c.is_finite())
                     || !<Space as Dim<D>>::ang_finite(wi),
             );
-            *xi = xn;
+            *ui = un;
+            *xi = x0[i] + un;
             *vi = vn;
         });
     bad.iter().position(|&b| b != 0)

@@ -1,5 +1,10 @@
-//! Per-particle state as parallel arrays: reference and current position, velocity, orientation,
-//! angular velocity, body, mass, inertia, constraint flags.
+//! Per-particle state as parallel arrays: reference position, displacement (the state), current
+//! position, velocity, orientation, angular velocity, body, mass, inertia, constraint flags.
+//!
+//! The displacement u = x - X is what evolves; the current position x = X + u is derived from it
+//! (output, cell grids). Relative vectors are formed as (X_j - X_i) + (u_j - u_i), never as
+//! x_j - x_i: an offset of the whole scene cancels exactly in X_j - X_i, and u keeps full
+//! precision however far from the origin the body sits (see docs/model.md).
 use super::dim::{Dim, Space, Vect};
 
 /// Translation along axis k is prescribed when bit k is set.
@@ -15,7 +20,9 @@ where
 {
     /// Reference (initial) positions X (m).
     pub x0: Vec<Vect<D>>,
-    /// Current positions x (m).
+    /// Displacements u = x - X (m): the evolving state.
+    pub u: Vec<Vect<D>>,
+    /// Current positions x = X + u (m), derived from `u` (output and cell grids only).
     pub x: Vec<Vect<D>>,
     /// Velocities (m/s).
     pub v: Vec<Vect<D>>,
@@ -47,6 +54,20 @@ where
     }
     /// Displacement x - X of particle i (m).
     pub fn displacement(&self, i: usize) -> Vect<D> {
-        self.x[i] - self.x0[i]
+        self.u[i]
     }
+    /// Recomputes the current positions x = X + u from the displacements.
+    pub fn sync_positions(&mut self) {
+        for ((x, x0), u) in self.x.iter_mut().zip(&self.x0).zip(&self.u) {
+            *x = x0 + u;
+        }
+    }
+}
+
+/// The vector from particle i to particle j in the current configuration, formed as
+/// (X_j - X_i) + (u_j - u_i) so that it does not depend on where the scene sits. Exactly
+/// antisymmetric: rel(j, i) = -rel(i, j) bit for bit.
+#[inline(always)]
+pub fn rel<const D: usize>(x0: &[Vect<D>], u: &[Vect<D>], i: usize, j: usize) -> Vect<D> {
+    (x0[j] - x0[i]) + (u[j] - u[i])
 }

@@ -50,6 +50,41 @@ pub enum SimError {
     OutOfMemory(String),
 }
 
+/// Significant bits of the particle spacing that coordinates must keep: a reference vector
+/// X_j - X_i is then exact to 2^-20 (1e-6) of l0, and the lattice of a body far from the origin
+/// differs from the same lattice at the origin by no more than that.
+pub const MIN_SPACING_BITS: i32 = 20;
+
+/// Refuses a body whose coordinates are too large to resolve the particle spacing: far from the
+/// origin, adjacent doubles are farther apart than 2^-MIN_SPACING_BITS l0, so particles would
+/// be misplaced or coincide. The displacements are relative and keep full precision anywhere;
+/// only the reference lattice is limited by where the scene puts it.
+fn check_resolution<const D: usize>(
+    b: usize,
+    name: &str,
+    points: &[Vect<D>],
+    l0: f64,
+) -> Result<(), SimError> {
+    let far = points.iter().flat_map(|p| p.iter()).fold(0.0f64, |a, c| {
+        if c.is_finite() {
+            a.max(c.abs())
+        } else {
+            f64::INFINITY
+        }
+    });
+    // Spacing of adjacent doubles near `far`, bounded above by far * eps.
+    let ulp = far * f64::EPSILON;
+    // Written so that a NaN or infinite coordinate (far = inf) is refused as well.
+    let resolved = ulp <= l0 * 2f64.powi(-MIN_SPACING_BITS);
+    if !resolved {
+        let bits = (l0 / ulp).log2().floor().max(0.0);
+        return Err(SimError::Invalid(format!(
+            "body '{name}' (bodies[{b}]): a coordinate of {far:.3e} m leaves only {bits} significant bits for the particle spacing {l0:.3e} m (at least {MIN_SPACING_BITS} are needed; positions there are rounded to {ulp:.1e} m); place the body nearer the origin"
+        )));
+    }
+    Ok(())
+}
+
 /// A body to create: its material, particle positions and initial velocity.
 #[derive(Clone, Debug)]
 pub struct BodyInit<const D: usize> {
@@ -78,7 +113,8 @@ where
 {
     pub time: f64,
     pub steps: u64,
-    pub x: Vec<Vect<D>>,
+    /// Displacements u = x - X (m); positions are X + u.
+    pub u: Vec<Vect<D>>,
     pub v: Vec<Vect<D>>,
     pub q: Vec<<Space as Dim<D>>::Rotation>,
     pub w: Vec<<Space as Dim<D>>::Ang>,
@@ -141,6 +177,7 @@ where
         let re = options.re_factor * l0;
         let mut p = Particles::<D> {
             x0: vec![],
+            u: vec![],
             x: vec![],
             v: vec![],
             q: vec![],
@@ -151,6 +188,9 @@ where
             fix: vec![],
             n_ref: vec![],
         };
+        for (b, body) in bodies.iter().enumerate() {
+            check_resolution(b, &body.name, &body.points, l0)?;
+        }
         let total: usize = bodies.iter().map(|b| b.points.len()).sum();
         let oom = |e: std::collections::TryReserveError| {
             SimError::OutOfMemory(format!(
@@ -158,6 +198,7 @@ where
             ))
         };
         p.x0.try_reserve_exact(total).map_err(oom)?;
+        p.u.try_reserve_exact(total).map_err(oom)?;
         p.x.try_reserve_exact(total).map_err(oom)?;
         p.v.try_reserve_exact(total).map_err(oom)?;
         p.q.try_reserve_exact(total).map_err(oom)?;
@@ -171,6 +212,7 @@ where
             let m = body.material.density * volume;
             for pt in &body.points {
                 p.x0.push(*pt);
+                p.u.push(Vect::<D>::zeros());
                 p.x.push(*pt);
                 p.v.push(body.velocity);
                 p.q.push(<Space as Dim<D>>::identity());
@@ -357,10 +399,10 @@ where
         let mut overlap = None;
         if self.contact.active {
             self.contact
-                .update_list(&self.p.x, &self.p.body, &self.bonds);
+                .update_list(&self.p.x, &self.p.u, &self.p.body, &self.bonds);
             overlap = self
                 .contact
-                .add_forces(&self.p.x, &self.p.body, &mut self.force);
+                .add_forces(&self.p.x0, &self.p.u, &self.p.body, &mut self.force);
         }
         for g in &mut self.groups {
             let mut sum = Vect::<D>::zeros();
@@ -385,7 +427,7 @@ where
         };
         self.fracture_checks += 1;
         let (touched, pairs) =
-            super::fracture::break_bonds(&self.p.x, &mut self.bonds, eps, &mut self.frac_flag);
+            super::fracture::break_bonds(&self.p.u, &mut self.bonds, eps, &mut self.frac_flag);
         if touched.is_empty() {
             return;
         }
@@ -528,7 +570,7 @@ where
     /// releases the strain energy of the bond).
     pub fn contact_energy(&self) -> f64 {
         if self.contact.active {
-            self.contact.energy(&self.p.x, &self.p.body)
+            self.contact.energy(&self.p.x0, &self.p.u, &self.p.body)
         } else {
             0.0
         }
@@ -537,7 +579,7 @@ where
     /// Pairs in contact now (closer than l0 and repelling), each pair once.
     pub fn contact_pairs(&self) -> usize {
         if self.contact.active {
-            self.contact.pairs_in_contact(&self.p.x)
+            self.contact.pairs_in_contact(&self.p.x0, &self.p.u)
         } else {
             0
         }
@@ -567,7 +609,7 @@ where
 
     /// Largest strain over the intact bonds now (-), and a particle that has it (O(bonds)).
     pub fn max_bond_strain(&self) -> (f64, usize) {
-        super::fracture::max_bond_strain(&self.p.x, &self.bonds)
+        super::fracture::max_bond_strain(&self.p.u, &self.bonds)
     }
 
     /// Sizes of the fragments as (body, particles), in order of their lowest particle index.
@@ -586,7 +628,8 @@ where
     /// Pairs closer than l0 now: (different bodies, one body across a broken bond).
     pub fn contact_pairs_by_kind(&self) -> (usize, usize) {
         if self.contact.active {
-            self.contact.pairs_by_kind(&self.p.x, &self.p.body)
+            self.contact
+                .pairs_by_kind(&self.p.x0, &self.p.u, &self.p.body)
         } else {
             (0, 0)
         }
@@ -652,12 +695,21 @@ where
         (u / n, v / n)
     }
 
-    /// Index of the particle of `body` (any body when None) nearest to a reference point.
+    /// Index of the particle of `body` (any body when None) nearest to a reference point, and
+    /// its distance. Ties (a point half way between particles, as a probe on a beam's axis) go
+    /// to the lowest index among the particles within 1e-6 l0 of the nearest distance, so the
+    /// choice does not depend on round-off, i.e. on where the scene sits.
     pub fn nearest_particle(&self, point: &Vect<D>, body: Option<u32>) -> Option<(usize, f64)> {
+        let dist = |i: usize| (self.p.x0[i] - point).norm();
+        let mine = |i: &usize| body.is_none_or(|b| self.p.body[*i] == b);
+        let dmin = (0..self.len())
+            .filter(mine)
+            .map(dist)
+            .min_by(|a, b| a.total_cmp(b))?;
         (0..self.len())
-            .filter(|&i| body.is_none_or(|b| self.p.body[i] == b))
-            .map(|i| (i, (self.p.x0[i] - point).norm()))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(mine)
+            .map(|i| (i, dist(i)))
+            .find(|&(_, d)| d <= dmin + 1e-6 * self.l0)
     }
 
     /// Captures the evolving state.
@@ -665,7 +717,7 @@ where
         WorldState {
             time: self.time,
             steps: self.steps,
-            x: self.p.x.clone(),
+            u: self.p.u.clone(),
             v: self.p.v.clone(),
             q: self.p.q.clone(),
             w: self.p.w.clone(),
@@ -679,7 +731,7 @@ where
     /// Restores a state captured from a world built from the same scene.
     pub fn set_state(&mut self, s: &WorldState<D>) -> Result<(), SimError> {
         let n = self.len();
-        if s.x.len() != n
+        if s.u.len() != n
             || s.v.len() != n
             || s.q.len() != n
             || s.w.len() != n
@@ -694,7 +746,7 @@ where
         // Checked before anything changes: a refused state leaves the world as it was.
         let finite = |v: &Vect<D>| v.iter().all(|c| c.is_finite());
         if !(s.time.is_finite()
-            && s.x.iter().all(finite)
+            && s.u.iter().all(finite)
             && s.v.iter().all(finite)
             && s.w.iter().all(<Space as Dim<D>>::ang_finite)
             && s.w0.iter().all(|w| w.is_finite()))
@@ -705,7 +757,8 @@ where
         }
         self.time = s.time;
         self.steps = s.steps;
-        self.p.x.clone_from(&s.x);
+        self.p.u.clone_from(&s.u);
+        self.p.sync_positions();
         self.p.v.clone_from(&s.v);
         self.p.q.clone_from(&s.q);
         self.p.w.clone_from(&s.w);
@@ -747,22 +800,31 @@ where
         let mut f = vec![Vect::<D>::zeros(); n];
         let mut t = vec![<Space as Dim<D>>::ang_zero(); n];
         let rotational = self.op.model != super::params::ElasticModel::Corrected;
-        // Deterministic pseudo-random start vector.
-        let mut seed: u64 = 0x9E37_79B9_7F4A_7C15;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        // Deterministic pseudo-random start vector that moves with the body: per particle a
+        // pseudo-random combination of its bond directions (coefficients hashed from the pair
+        // indices), so a translated or rotated scene starts from the translated or rotated
+        // vector and measures the same omega_max to round-off.
+        let coef = |i: usize, j: u32, salt: u64| -> f64 {
+            let mut z = ((i as u64) << 32 | j as u64) ^ salt;
+            z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^= z >> 31;
+            (z >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
-        let mut zt: Vec<Vect<D>> = (0..n).map(|_| Vect::<D>::from_fn(|_, _| rnd())).collect();
+        let bond_mix = |i: usize, salt: u64| -> Vect<D> {
+            let mut acc = Vect::<D>::zeros();
+            for b in self.bonds.of(i) {
+                let r0 = self.bonds.r0[b];
+                acc += r0 * (coef(i, self.bonds.nbr[b], salt) / r0.norm());
+            }
+            acc
+        };
+        let mut zt: Vec<Vect<D>> = (0..n).map(|i| bond_mix(i, 1)).collect();
         let mut zr: Vec<<Space as Dim<D>>::Ang> = (0..n)
-            .map(|_| {
-                let a = <Space as Dim<D>>::cross(
-                    &Vect::<D>::from_fn(|_, _| rnd()),
-                    &Vect::<D>::from_fn(|_, _| rnd()),
-                );
+            .map(|i| {
                 if rotational {
+                    let a = <Space as Dim<D>>::cross(&bond_mix(i, 2), &bond_mix(i, 3));
                     <Space as Dim<D>>::ang_scale(a, 1.0 / self.l0)
                 } else {
                     <Space as Dim<D>>::ang_zero()
@@ -801,7 +863,7 @@ where
             for i in 0..n {
                 zt[i] /= nz;
                 zr[i] = <Space as Dim<D>>::ang_scale(zr[i], 1.0 / nz);
-                probe.x[i] = self.p.x0[i] + zt[i] * eps;
+                probe.u[i] = zt[i] * eps;
                 probe.q[i] =
                     <Space as Dim<D>>::advance(&<Space as Dim<D>>::identity(), &zr[i], eps);
             }

@@ -193,6 +193,18 @@ impl Simulation {
             (to3(&u), to3(&v))
         })
     }
+    /// Particles of boundary group g.
+    pub fn group_size(&self, g: usize) -> usize {
+        with!(self, m => m.world.groups[g].members.len())
+    }
+    /// Particles of load region r.
+    pub fn load_size(&self, r: usize) -> usize {
+        with!(self, m => m.world.loads[r].members.len())
+    }
+    /// Reference position of the particle probe k is read from (m).
+    pub fn probe_particle_position(&self, k: usize) -> [f64; 3] {
+        with!(self, m => to3(&m.world.p.x0[m.probes[k].particle]))
+    }
     /// Reaction force of boundary group g on the body (N).
     pub fn group_reaction(&self, g: usize) -> [f64; 3] {
         with!(self, m => to3(&m.world.groups[g].reaction))

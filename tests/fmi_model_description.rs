@@ -216,7 +216,22 @@ fn pack_writes_a_complete_fmu() {
     );
     assert_eq!(&read("binaries/linux64/small3d.so")[..4], b"\x7fELF");
     let doc = String::from_utf8(read("documentation/index.html")).unwrap();
-    assert_eq!(doc, documentation_html(&scene));
+    let sim = mps_solid::sim::Simulation::new(&scene).unwrap();
+    assert_eq!(doc, documentation_html(&scene, &sim));
+    // Issue 9: every load region, boundary group and probe is listed with its particle count.
+    for (r, l) in scene.loads.iter().enumerate() {
+        let row = format!("<code>{}</code>", l.name);
+        assert!(doc.contains(&row), "load region {} undocumented", l.name);
+        assert!(sim.load_size(r) > 0);
+        assert!(doc.contains(&format!("</td><td>{}</td></tr>", sim.load_size(r))));
+    }
+    for (g, b) in scene.boundaries.iter().enumerate() {
+        assert!(doc.contains(&format!("<code>{}</code>", b.name)));
+        assert!(doc.contains(&format!("</td><td>{}</td></tr>", sim.group_size(g))));
+    }
+    for p in &scene.probes {
+        assert!(doc.contains(&format!("<code>{}</code>", p.name)));
+    }
     for v in VariableTable::new(&scene).vars {
         assert!(
             doc.contains(&format!("<code>{}</code>", v.name)),

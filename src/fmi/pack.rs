@@ -21,8 +21,18 @@ fn html(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// documentation/index.html: the scene and every variable.
-pub fn documentation_html(scene: &Scene) -> String {
+/// A region's extent as "[x0, x1] x [y0, y1] (x [z0, z1])" (m).
+fn extent(min: &[f64], max: &[f64]) -> String {
+    min.iter()
+        .zip(max)
+        .map(|(a, b)| format!("[{}, {}]", num(*a), num(*b)))
+        .collect::<Vec<_>>()
+        .join(" &times; ")
+}
+
+/// documentation/index.html: the scene, its coupling regions (with the particle counts of the
+/// built model `sim`) and every variable.
+pub fn documentation_html(scene: &Scene, sim: &crate::sim::Simulation) -> String {
     let table = VariableTable::new(scene);
     let mut s = String::new();
     s.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
@@ -45,6 +55,60 @@ pub fn documentation_html(scene: &Scene) -> String {
          from them then. The FMU state (fmi2GetFMUstate, serialisation) is portable data.</p>\n",
         scene.end_time, scene.output_interval
     ));
+    let per = if scene.dimension == 2 {
+        " per metre of depth (plane strain: a 2D scene is a slice of unit thickness)"
+    } else {
+        ""
+    };
+    s.push_str(&format!(
+        "<h2>Coupling</h2>\n<p>Forces, reactions and energies are in N and J{per}. A load region's \
+         force input is the total force on the region, spread evenly over its particles (all \
+         particles have the same volume, so this is spreading by volume); its outputs \
+         <code>.u*</code> / <code>.v*</code> are the mean displacement and velocity of exactly \
+         those particles, the motion work-conjugate to the force. Inputs are held over a \
+         communication step; first derivatives set with fmi2SetRealInputDerivatives \
+         (canInterpolateInputs) make them linear over the next step. Boundary displacement inputs \
+         act at the start of the step (boundary_input_timing = 1, FMI semantics) or are reached at \
+         its end (2). Gravity comes from the scene's law (gravity_source = 1) or the inputs (2). \
+         A NaN or infinite input is refused (fmi2Error); a coupled run that goes unstable stops \
+         with the solver's blow-up or overlap error, never with NaN outputs.</p>\n"
+    ));
+    s.push_str("<table>\n<tr><th>Kind</th><th>Name</th><th>Body</th><th>Region or point (m)</th><th>Particles</th></tr>\n");
+    for (r, l) in scene.loads.iter().enumerate() {
+        s.push_str(&format!(
+            "<tr><td>load region</td><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            html(&l.name),
+            html(&l.body),
+            extent(&l.region.min, &l.region.max),
+            sim.load_size(r)
+        ));
+    }
+    for (g, b) in scene.boundaries.iter().enumerate() {
+        s.push_str(&format!(
+            "<tr><td>boundary group ({:?})</td><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            b.kind,
+            html(&b.name),
+            html(&b.body),
+            extent(&b.region.min, &b.region.max),
+            sim.group_size(g)
+        ));
+    }
+    for (k, p) in scene.probes.iter().enumerate() {
+        let at = sim.probe_particle_position(k);
+        s.push_str(&format!(
+            "<tr><td>probe</td><td><code>{}</code></td><td>{}</td><td>{:?} (read at the particle \
+             at {:?}, interpolated with the corrected gradient)</td><td>1</td></tr>\n",
+            html(&p.name),
+            html(
+                p.body
+                    .as_deref()
+                    .unwrap_or("(the body containing the point)")
+            ),
+            p.point,
+            &at[..scene.dimension.min(3)]
+        ));
+    }
+    s.push_str("</table>\n");
     s.push_str("<h2>Variables</h2>\n<table>\n<tr><th>#</th><th>Name</th><th>Value reference</th><th>Type</th><th>Causality</th><th>Variability</th><th>Unit</th><th>Start</th><th>Range</th><th>Description</th></tr>\n");
     for (i, v) in table.vars.iter().enumerate() {
         s.push_str(&format!(
@@ -178,9 +242,11 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
             library.display()
         )
     })?;
-    crate::sim::Simulation::new(scene)
+    let sim = crate::sim::Simulation::new(scene)
         .map_err(|e| format!("the scene's model cannot be built: {e}"))?;
     let xml = super::model_description::packed_model_description_xml(scene)?;
+    let doc = documentation_html(scene, &sim);
+    drop(sim);
     let dir = match out.parent().filter(|d| !d.as_os_str().is_empty()) {
         Some(dir) => {
             std::fs::create_dir_all(dir)
@@ -199,7 +265,7 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
     ));
     let file =
         std::fs::File::create(&tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
-    let result = write_archive(scene, &xml, &lib, file)
+    let result = write_archive(scene, &xml, &doc, &lib, file)
         .map_err(|e| format!("cannot write {}: {e}", tmp.display()))
         .and_then(|()| {
             std::fs::rename(&tmp, out)
@@ -215,6 +281,7 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
 fn write_archive(
     scene: &Scene,
     xml: &str,
+    doc: &str,
     lib: &[u8],
     file: std::fs::File,
 ) -> zip::result::ZipResult<()> {
@@ -248,12 +315,7 @@ fn write_archive(
         scene.to_json().as_bytes(),
         0o644,
     )?;
-    add(
-        &mut z,
-        "documentation/index.html",
-        documentation_html(scene).as_bytes(),
-        0o644,
-    )?;
+    add(&mut z, "documentation/index.html", doc.as_bytes(), 0o644)?;
     let file = z.finish()?;
     file.sync_all()?;
     Ok(())

@@ -142,83 +142,32 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Reads little-endian integers of an ELF image, None past its end.
-struct Elf<'a>(&'a [u8]);
-
-impl Elf<'_> {
-    fn bytes<const N: usize>(&self, at: u64) -> Option<[u8; N]> {
-        let at = usize::try_from(at).ok()?;
-        self.0.get(at..at.checked_add(N)?)?.try_into().ok()
-    }
-    fn u16(&self, at: u64) -> Option<u64> {
-        self.bytes::<2>(at).map(|b| u16::from_le_bytes(b) as u64)
-    }
-    fn u32(&self, at: u64) -> Option<u64> {
-        self.bytes::<4>(at).map(|b| u32::from_le_bytes(b) as u64)
-    }
-    fn u64(&self, at: u64) -> Option<u64> {
-        self.bytes::<8>(at).map(u64::from_le_bytes)
-    }
-    /// The NUL-terminated name at `at`.
-    fn name(&self, at: u64) -> Option<&[u8]> {
-        let rest = self.0.get(usize::try_from(at).ok()?..)?;
-        Some(&rest[..rest.iter().position(|&b| b == 0)?])
-    }
-}
-
-/// Checks that `lib` is a 64-bit little-endian ELF shared object whose dynamic symbol table
-/// defines the function `symbol` (read from the section headers, without loading it).
+/// Checks that `lib` is a 64-bit little-endian ELF shared object (linux64) whose dynamic symbol
+/// table defines the function `symbol` (read with the `object` crate, without loading it).
 pub fn check_shared_library(lib: &[u8], symbol: &str) -> Result<(), String> {
-    let e = Elf(lib);
-    if lib.len() < 64 || &lib[..4] != b"\x7fELF" {
+    use object::{Object, ObjectKind, ObjectSymbol, SymbolKind};
+    if lib.len() < 4 || &lib[..4] != b"\x7fELF" {
         return Err("is not an ELF shared library (no ELF header)".into());
     }
-    if lib[4] != 2 || lib[5] != 1 {
+    if lib.len() < 6 || lib[4] != 2 || lib[5] != 1 {
         return Err("is not an ELF shared library for linux64 (not 64-bit little-endian)".into());
     }
-    const ET_DYN: u64 = 3;
-    if e.u16(16) != Some(ET_DYN) {
-        return Err("is not an ELF shared library (an ELF file, but not ET_DYN)".into());
+    let file = object::File::parse(lib)
+        .map_err(|e| format!("is a truncated or malformed ELF file ({e})"))?;
+    if file.kind() != ObjectKind::Dynamic {
+        return Err(format!(
+            "is not an ELF shared library (an ELF file of kind {:?})",
+            file.kind()
+        ));
     }
-    let bad = || "has a truncated or malformed ELF section table".to_string();
-    let shoff = e.u64(0x28).ok_or_else(bad)?;
-    let shentsize = e.u16(0x3a).ok_or_else(bad)?;
-    let shnum = e.u16(0x3c).ok_or_else(bad)?;
-    if shoff == 0 || shnum == 0 || shentsize < 64 {
-        return Err("has no section headers, so its dynamic symbols cannot be read".into());
+    let exported = file
+        .dynamic_symbols()
+        .any(|s| s.name() == Ok(symbol) && s.is_definition() && s.kind() == SymbolKind::Text);
+    if exported {
+        Ok(())
+    } else {
+        Err(format!("does not export {symbol}"))
     }
-    const SHT_DYNSYM: u64 = 11;
-    for k in 0..shnum {
-        let sh = shoff + k * shentsize;
-        if e.u32(sh + 4).ok_or_else(bad)? != SHT_DYNSYM {
-            continue;
-        }
-        let (off, size) = (
-            e.u64(sh + 0x18).ok_or_else(bad)?,
-            e.u64(sh + 0x20).ok_or_else(bad)?,
-        );
-        let link = e.u32(sh + 0x28).ok_or_else(bad)?;
-        let entsize = e.u64(sh + 0x38).ok_or_else(bad)?.max(24);
-        let strtab = e.u64(shoff + link * shentsize + 0x18).ok_or_else(bad)?;
-        for j in 0..size / entsize {
-            let st = off + j * entsize;
-            let name = e.u32(st).ok_or_else(bad)?;
-            let info = lib
-                .get(usize::try_from(st + 4).map_err(|_| bad())?)
-                .ok_or_else(bad)?;
-            let shndx = e.u16(st + 6).ok_or_else(bad)?;
-            const STT_FUNC: u8 = 2;
-            if info & 0xf == STT_FUNC
-                && shndx != 0
-                && e.name(strtab + name) == Some(symbol.as_bytes())
-            {
-                return Ok(());
-            }
-        }
-    }
-    Err(format!(
-        "is a shared library but does not export {symbol} (not the mps-solid FMU library)"
-    ))
 }
 
 /// Builds `out` (NAME.fmu) from a scene and the built library (target/<profile>/libmps_solid.so).

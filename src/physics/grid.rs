@@ -44,7 +44,9 @@ impl<const D: usize> CellGrid<D> {
             let mut key = base;
             let mut c = code;
             for kd in key.iter_mut() {
-                *kd += (c % 3) as i64 - 1;
+                // Saturating: a point far outside any sane domain (|x| / cell beyond i64, e.g. a
+                // corrupted state) lands in the edge cell instead of overflowing.
+                *kd = kd.saturating_add((c % 3) as i64 - 1);
                 c /= 3;
             }
             if let Some(list) = self.cells.get(&key) {
@@ -55,5 +57,27 @@ impl<const D: usize> CellGrid<D> {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_beyond_the_key_range_do_not_overflow() {
+        // Found by the fmu_state fuzz target: a state with a displacement of ~1e300 m put a
+        // particle in cell i64::MAX, and the neighbour-cell offset overflowed (a panic with
+        // overflow checks, wrong cells without).
+        let pts = vec![
+            Vect::<2>::new(1e300, -1e300),
+            Vect::<2>::new(1e300, -1e300),
+            Vect::<2>::new(0.0, 0.0),
+        ];
+        let g = CellGrid::build(&pts, None, 0.1);
+        let mut near = vec![];
+        g.for_each_near(&pts, &pts[0], 0.1, |j| near.push(j));
+        near.sort();
+        assert_eq!(near, vec![0, 1]);
     }
 }

@@ -19,9 +19,9 @@ def modal_frequencies(t: np.ndarray, y: np.ndarray, modes: int = 4) -> list[tupl
     M = 2 * modes + 1
     v = vh[:M].T
     z = np.linalg.eigvals(np.linalg.pinv(v[:-1]) @ v[1:])
-    # free vibration of a (nearly) undamped system: keep poles near the unit circle (the others
-    # are noise and would overflow the Vandermonde basis)
-    z = z[np.abs(np.log(np.abs(z) + 1e-300)) < 0.05 / n]
+    # keep poles that change by less than e^5 over the record (free vibration, slow drift); the
+    # others are noise and would overflow the Vandermonde basis
+    z = z[np.abs(np.log(np.abs(z) + 1e-300)) < 5.0 / n]
     # amplitudes by least squares on the Vandermonde basis
     V = np.power.outer(z, np.arange(n)).T
     amp = np.abs(np.linalg.lstsq(V, y.astype(complex), rcond=None)[0])

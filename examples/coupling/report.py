@@ -81,6 +81,14 @@ def stability():
                 if not ok:
                     break
                 last_ok, H = H, 2 * H
+            while last_ok is None and H > 1.6e-5:  # unstable at 0.125 ms: halve down to one solver step
+                H2 = H / 2
+                ok, note2 = stable(alg, order, k, H2)
+                print(alg, order, k, H2, ok, note2, flush=True)
+                if ok:
+                    last_ok = H2
+                else:
+                    H, note = H2, note2
             if last_ok is not None and H <= 0.0641:  # one bisection between last stable and first unstable
                 mid = math.sqrt(last_ok * H)
                 ok, _ = stable(alg, order, k, mid)
@@ -89,6 +97,23 @@ def stability():
             data.append({"algorithm": alg, "order": order, "k": k, "largest_stable": last_ok,
                          "first_unstable": H if H <= 0.0641 else None, "note": note})
             save("stability", data)
+
+
+def stability_low():
+    """Completes stability.json: where 0.125 ms was already unstable, halves the step down to the
+    beam's solver step (1/64 ms)."""
+    data = load("stability")
+    for row in data:
+        H = row["first_unstable"]
+        while row["largest_stable"] is None and H and H > 1.6e-5:
+            ok, note = stable(row["algorithm"], row["order"], row["k"], H / 2)
+            print(row["algorithm"], row["order"], row["k"], H / 2, ok, note, flush=True)
+            if ok:
+                row["largest_stable"] = H / 2
+            else:
+                H = H / 2
+                row["first_unstable"], row["note"] = H, note
+        save("stability", data)
 
 
 def energy():

@@ -12,6 +12,8 @@ def modal_frequencies(t: np.ndarray, y: np.ndarray, modes: int = 4) -> list[tupl
     if not np.allclose(np.diff(t), dt, rtol=1e-6):
         raise ValueError("modal_frequencies needs a uniformly sampled record")
     y = np.asarray(y, float)
+    if not np.all(np.isfinite(y)):  # LAPACK's SVD may not return on NaN
+        raise ValueError("modal_frequencies: non-finite samples")
     n = len(y)
     L = n // 3
     Y = np.array([y[i:i + L + 1] for i in range(n - L)])

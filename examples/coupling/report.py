@@ -255,7 +255,8 @@ def plots():
             if rows:
                 ax.loglog([r["k"] for r in rows], [r["largest_stable"] * 1e3 for r in rows], mk + "-",
                           label=f"{alg}, {'hold' if order == 1 else 'linear'}")
-        k = np.array([4e4, 4e7])
+        ks = sorted({r["k"] for r in s})
+        ax.loglog(ks, [0.1 / coupling_mode(k) * 1e3 for k in ks], "k--", label="rule 0.1 / omega_c")
         ax.set_xlabel("coupling stiffness k (N/m per m)")
         ax.set_ylabel("largest stable communication step (ms)")
         ax.set_title("Stability of the explicit coupling")

@@ -40,13 +40,16 @@ impl<const D: usize> CellGrid<D> {
         let base = Self::key_of(p, self.cell);
         let r2 = radius * radius;
         let n = 3usize.pow(D as u32);
-        for code in 0..n {
+        'cells: for code in 0..n {
             let mut key = base;
             let mut c = code;
             for kd in key.iter_mut() {
-                // Saturating: a point far outside any sane domain (|x| / cell beyond i64, e.g. a
-                // corrupted state) lands in the edge cell instead of overflowing.
-                *kd = kd.saturating_add((c % 3) as i64 - 1);
+                // A point far outside any sane domain (|x| / cell beyond i64, e.g. a corrupted
+                // state) sits in the edge cell, which has no neighbour beyond it.
+                match kd.checked_add((c % 3) as i64 - 1) {
+                    Some(k) => *kd = k,
+                    None => continue 'cells,
+                }
                 c /= 3;
             }
             if let Some(list) = self.cells.get(&key) {

@@ -289,3 +289,28 @@ fn toml_and_json_describe_the_same_scene() {
     let t = toml::to_string(&s).unwrap();
     assert_eq!(Scene::from_toml(&t).unwrap(), s);
 }
+
+#[test]
+fn load_region_names_are_unique_and_distinct_from_probe_names() {
+    // Found while building the coupling example: a probe and a load region named 'tip' both
+    // give the FMU outputs tip.ux/.vx, which silently became tip.ux and tip.ux_2.
+    let mut v = base();
+    let probe = v["probes"][0]["name"].as_str().unwrap().to_string();
+    let body = v["bodies"][0]["name"].clone();
+    let region = v["bodies"][0]["boxes"][0].clone();
+    v["loads"] = serde_json::json!([{ "name": probe, "body": body, "region": region }]);
+    let e = error_of(v.clone());
+    assert!(
+        e.contains(".name") && e.contains("a load region has the same name"),
+        "{e}"
+    );
+    v["loads"] = serde_json::json!([
+        { "name": "push", "body": body, "region": region },
+        { "name": "push", "body": body, "region": region }
+    ]);
+    let e = error_of(v);
+    assert!(
+        e.contains("loads[1]") && e.contains("duplicate load region name"),
+        "{e}"
+    );
+}

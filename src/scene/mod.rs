@@ -358,6 +358,9 @@ impl Scene {
             self.body_index(&l.body)
                 .ok_or_else(|| err(format!("{f}.body"), format!("no body named '{}'", l.body)))?;
             region(&format!("{f}.region"), &l.region, d)?;
+            if self.loads[..k].iter().any(|o| o.name == l.name) {
+                return Err(err(format!("{f}.name"), "duplicate load region name"));
+            }
         }
         for (k, p) in self.probes.iter().enumerate() {
             xml_text(&format!("probes[{k}].name"), &p.name, false)?;
@@ -365,6 +368,13 @@ impl Scene {
             vector(&format!("{f}.point"), &p.point, d)?;
             if self.probes[..k].iter().any(|o| o.name == p.name) {
                 return Err(err(format!("{f}.name"), "duplicate probe name"));
+            }
+            if self.loads.iter().any(|l| l.name == p.name) {
+                return Err(err(
+                    format!("{f}.name"),
+                    "a load region has the same name: the FMU outputs <name>.ux/.vx of both would \
+                     collide",
+                ));
             }
             let inside = |b: &Body| {
                 b.boxes.iter().any(|r| {

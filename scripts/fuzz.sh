@@ -7,7 +7,7 @@
 #   FUZZ_SECONDS=60 scripts/fuzz.sh          # longer runs
 #   FUZZ_TARGETS="scene" scripts/fuzz.sh     # some targets only
 #   FUZZ_UPDATE_CORPUS=1 scripts/fuzz.sh     # merge what the run found into fuzz/corpus
-#   MPS_FUZZ_WILD=1 scripts/fuzz.sh          # also parameter values that make steps take hours
+#   MPS_FUZZ_ALL=1 scripts/fuzz.sh          # also parameter values that make steps take hours
 #
 # A crash leaves its input in fuzz/artifacts/<target>/; reproduce it with
 #   fuzz/target/<host>/release/<target> fuzz/artifacts/<target>/crash-...

@@ -7,7 +7,7 @@
 #![no_main]
 use arbitrary::Arbitrary;
 use libfuzzer_sys::fuzz_target;
-use mps_fuzz::{fixtures, instantiate, wild, FIXTURES};
+use mps_fuzz::{fixtures, instantiate, all_inputs, FIXTURES};
 use mps_solid::fmi::instance::{FmuState, Instance};
 use mps_solid::fmi::model_description::LOG_CATEGORIES;
 use mps_solid::fmi::variables::{Quantity, VariableTable};
@@ -60,7 +60,7 @@ enum Time {
     Other(Real),
 }
 
-/// Step size of fmi2DoStep: bounded to 1 ms unless MPS_FUZZ_WILD=1 (a longer step of a stiff
+/// Step size of fmi2DoStep: bounded to 1 ms unless MPS_FUZZ_ALL=1 (a longer step of a stiff
 /// model runs for minutes: issue 8 item 1).
 #[derive(Arbitrary, Debug, Clone, Copy)]
 enum Step {
@@ -141,7 +141,7 @@ impl Harness {
             Real::Special(k) => {
                 let v = SPECIAL[k as usize % SPECIAL.len()];
                 // A parameter with an accepted extreme value makes a step take hours.
-                if !wild() && v.is_finite() && v != 0.0 && self.is_parameter(vr) {
+                if !all_inputs() && v.is_finite() && v != 0.0 && self.is_parameter(vr) {
                     return self.scaled(vr, 0);
                 }
                 v
@@ -149,7 +149,7 @@ impl Harness {
             Real::Scaled(k) => self.scaled(vr, k),
             Real::Bits(b) => {
                 let v = f64::from_bits(b);
-                if !wild() && v.is_finite() && self.is_parameter(vr) {
+                if !all_inputs() && v.is_finite() && self.is_parameter(vr) {
                     return self.scaled(vr, (b % 64) as i8 - 32);
                 }
                 v
@@ -172,7 +172,7 @@ impl Harness {
     }
 
     /// Start value times 2^(k/32), kept in a range where a 1 ms step takes at most ~1000
-    /// solver steps of the small scenes unless MPS_FUZZ_WILD=1.
+    /// solver steps of the small scenes unless MPS_FUZZ_ALL=1.
     fn scaled(&self, vr: u32, k: i8) -> f64 {
         let f = 2f64.powf(k as f64 / 32.0);
         let Some(v) = self.inst.table().get(vr) else {
@@ -196,7 +196,7 @@ impl Harness {
             Quantity::Gravity(_) => start * f,
             _ => f - 1.0,
         };
-        if wild() {
+        if all_inputs() {
             start * f
         } else {
             x
@@ -284,7 +284,7 @@ impl Harness {
                     Step::Small(k) => 1e-3 * (k as f64 + 1.0) / 256.0,
                     Step::Other(x) => {
                         let h = self.value(u32::MAX, x);
-                        if !wild() && h.is_finite() && h > 1e-3 {
+                        if !all_inputs() && h.is_finite() && h > 1e-3 {
                             1e-3
                         } else {
                             h

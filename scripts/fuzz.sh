@@ -7,7 +7,7 @@
 #   FUZZ_SECONDS=60 scripts/fuzz.sh          # longer runs
 #   FUZZ_TARGETS="scene" scripts/fuzz.sh     # some targets only
 #   FUZZ_UPDATE_CORPUS=1 scripts/fuzz.sh     # merge what the run found into fuzz/corpus
-#   MPS_FUZZ_ALL=1 scripts/fuzz.sh          # also parameter values that make steps take hours
+#   MPS_FUZZ_ALL=1 scripts/fuzz.sh           # also inputs of known open defects (fuzz/README.md)
 #
 # A crash leaves its input in fuzz/artifacts/<target>/; reproduce it with
 #   fuzz/target/<host>/release/<target> fuzz/artifacts/<target>/crash-...
@@ -27,14 +27,24 @@ fi
 t0=$SECONDS
 if ! cargo fuzz --version >/dev/null 2>&1; then
     echo "== installing cargo-fuzz"
-    cargo install cargo-fuzz --locked
+    if ! cargo install cargo-fuzz --locked; then
+        echo "fuzz: cannot install cargo-fuzz"
+        echo "fuzz: 0 passed, 1 failed"
+        exit 1
+    fi
 fi
 t1=$SECONDS
 echo "cargo-fuzz: $(cargo fuzz --version) (install: $((t1 - t0)) s)"
 
 # Release build with libFuzzer's coverage instrumentation and debug assertions (overflow checks);
 # no sanitizer: the crate's unsafe code is only the C ABI, which the targets do not call.
-cargo +nightly fuzz build -s none
+# codegen-units 4 as the main crate's release profile: cargo-fuzz's default of 1 makes the
+# cold build of mps-solid one long single-threaded compile.
+if ! cargo +nightly fuzz build -s none --codegen-units 4; then
+    echo "fuzz: the targets do not build"
+    echo "fuzz: 0 passed, 1 failed"
+    exit 1
+fi
 host=$(rustc +nightly -vV | sed -n 's/^host: //p')
 bin="$root/fuzz/target/$host/release"
 t2=$SECONDS

@@ -55,19 +55,29 @@ pub fn write_seeds(out: &Path) {
                 v.quantity,
                 Quantity::Gravity(_) | Quantity::GroupDisplacement(..) | Quantity::Load(..)
             ) {
-                inst.set_real(&[v.value_reference], &[1e-4]).expect("set an input");
+                inst.set_real(&[v.value_reference], &[1e-4])
+                    .expect("set an input");
             }
         }
         inst.do_step(inst.time(), 1e-3).expect("doStep");
         write(&states, &format!("{name}-inputs.bin"), &state(&mut inst));
         // A parameter changed before initialisation (the state carries other params).
         let mut inst = crate::instantiate(k);
-        inst.setup_experiment(0.0, Some(1.0)).expect("setupExperiment");
-        if let Some(v) = vars.iter().find(|v| matches!(v.quantity, Quantity::Young(_))) {
-            inst.set_real(&[v.value_reference], &[2e6]).expect("set young");
+        inst.setup_experiment(0.0, Some(1.0))
+            .expect("setupExperiment");
+        if let Some(v) = vars
+            .iter()
+            .find(|v| matches!(v.quantity, Quantity::Young(_)))
+        {
+            inst.set_real(&[v.value_reference], &[2e6])
+                .expect("set young");
         }
         inst.enter_initialization_mode().expect("enter");
-        write(&states, &format!("{name}-init-young.bin"), &state(&mut inst));
+        write(
+            &states,
+            &format!("{name}-init-young.bin"),
+            &state(&mut inst),
+        );
     }
     println!("seeds written to {}", out.display());
 }

@@ -60,8 +60,13 @@ fuzz_target!(init: {
         }
     }
     let back = inst.get_fmu_state().expect("get a state just restored");
-    let back = inst.serialize_fmu_state(&back).expect("serialise");
-    assert!(back == bytes, "get_fmu_state after set_fmu_state differs from the state set");
+    let back_bytes = inst.serialize_fmu_state(&back).expect("serialise");
+    assert!(
+        back_bytes == bytes || mps_fuzz::same_state(&state, &back),
+        "get_fmu_state after set_fmu_state differs from the state set: {} ({})",
+        mps_fuzz::first_difference(&state, &back),
+        mps_fuzz::first_byte_difference(&bytes, &back_bytes)
+    );
     if all_inputs() {
         // Needs a step-count limit: a mutated state can make the stable step tiny.
         let t = inst.time();

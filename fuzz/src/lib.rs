@@ -34,8 +34,11 @@ impl Logger for Quiet {
 /// would otherwise find again in its first seconds instead of new bugs:
 /// - accepted parameter values that make a step run for hours (issue 8 item 1: tiny density
 ///   or solver step, huge Young's modulus or communication step);
-/// - FMU states holding positions beyond 1e15 m or not finite (overflow of the contact grid's
-///   cell key in `physics::grid::CellGrid::for_each_near`, fuzz/regressions/open/).
+/// - FMU states with positions beyond 1e15 m or not finite (overflow of the contact grid's
+///   cell key in `physics::grid::CellGrid::for_each_near`), with non-finite inputs (restored
+///   and read back with fmi2OK), or whose parameters build a huge model (issue 8 item 2);
+///   reproducers in fuzz/regressions/open/.
+///
 /// Switch it on once those are fixed.
 pub fn all_inputs() -> bool {
     static W: OnceLock<bool> = OnceLock::new();
@@ -73,6 +76,60 @@ pub fn state_in_known_bounds<T: serde::Serialize>(state: &T) -> bool {
         &sim["D2"]["x"]
     };
     x.is_array() && finite(x, 1e15) && finite(&v["inputs"], f64::MAX)
+}
+
+/// The first place where two serialisable values differ (JSON path and both values), for the
+/// messages of failed round trips.
+pub fn first_difference<T: serde::Serialize>(a: &T, b: &T) -> String {
+    fn walk(a: &serde_json::Value, b: &serde_json::Value, path: String) -> Option<String> {
+        use serde_json::Value::{Array, Object};
+        match (a, b) {
+            (Object(x), Object(y)) => x.iter().find_map(|(k, v)| {
+                walk(
+                    v,
+                    y.get(k).unwrap_or(&serde_json::Value::Null),
+                    format!("{path}.{k}"),
+                )
+            }),
+            (Array(x), Array(y)) if x.len() == y.len() => x
+                .iter()
+                .zip(y)
+                .enumerate()
+                .find_map(|(i, (v, w))| walk(v, w, format!("{path}[{i}]"))),
+            _ if a == b => None,
+            _ => {
+                let short =
+                    |v: &serde_json::Value| v.to_string().chars().take(200).collect::<String>();
+                Some(format!("{path}: {} vs {}", short(a), short(b)))
+            }
+        }
+    }
+    match (serde_json::to_value(a), serde_json::to_value(b)) {
+        (Ok(x), Ok(y)) => walk(&x, &y, String::new())
+            .unwrap_or_else(|| "no difference in the serde form (a NaN payload or -0.0?)".into()),
+        _ => "not representable as JSON".into(),
+    }
+}
+
+/// Whether two states are the same up to the sign of zeros and NaN payloads (what their serde
+/// forms compare): a restored state may come back with +0.0 where it held -0.0, because the
+/// instance compares parameters with `==` (harmless: -0.0 and 0.0 are the same parameter).
+pub fn same_state<T: serde::Serialize>(a: &T, b: &T) -> bool {
+    matches!((serde_json::to_value(a), serde_json::to_value(b)), (Ok(x), Ok(y)) if x == y)
+}
+
+/// Where two byte strings first differ, with 8 bytes of each from there.
+pub fn first_byte_difference(a: &[u8], b: &[u8]) -> String {
+    match a.iter().zip(b).position(|(x, y)| x != y) {
+        Some(i) => format!(
+            "byte {i} of {}/{}: {:02x?} vs {:02x?}",
+            a.len(),
+            b.len(),
+            &a[i..(i + 8).min(a.len())],
+            &b[i..(i + 8).min(b.len())]
+        ),
+        None => format!("lengths {} and {}", a.len(), b.len()),
+    }
 }
 
 /// One test scene with its resources directory (file:// URI) and GUID.

@@ -95,7 +95,7 @@ for t in $targets; do
     found=$(find "$work" -type f | wc -l)
     if [ $ok = 1 ]; then
         passed=$((passed + 1))
-        echo "$t: ok, $nreplay corpus inputs replayed, ${runs:-0} runs in ${seconds} s, $found new inputs"
+        echo "$t: ok, $nreplay corpus and regression inputs replayed, ${runs:-0} runs in ${seconds} s, $found new inputs"
     else
         failed=$((failed + 1))
         grep -E "panicked at|^thread|ERROR: libFuzzer|SUMMARY|Test unit written|timeout" "$log" | head -8 || true

@@ -93,6 +93,7 @@ enum Call {
     },
     SetInteger {
         vr: Vec<Vr>,
+        values: Vec<i32>,
     },
     GetBoolean {
         vr: Vec<Vr>,
@@ -290,9 +291,10 @@ impl Harness {
                 let mut out = vec![0; vr.len()];
                 let _ = self.inst.get_integer(&vr, &mut out);
             }
-            Call::SetInteger { vr } => {
+            Call::SetInteger { vr, values } => {
                 let vr: Vec<u32> = vr.iter().take(8).map(|&v| self.vr(v)).collect();
-                let _ = self.inst.set_integer(&vr);
+                let n = vr.len().min(values.len());
+                let _ = self.inst.set_integer(&vr[..n], &values[..n]);
             }
             Call::GetBoolean { vr } => {
                 let vr: Vec<u32> = vr.iter().take(8).map(|&v| self.vr(v)).collect();

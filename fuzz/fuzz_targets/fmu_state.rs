@@ -22,6 +22,15 @@ fuzz_target!(init: {
         .iter()
         .position(|f| data.get(16..16 + f.guid.len()) == Some(f.guid.as_bytes()))
         .unwrap_or(0);
+    // States carry a CRC-32 of everything before it (tested in tests/fmi_host.rs): recompute
+    // it so that mutations reach the decoder and the restore instead of stopping at the check.
+    let mut data = data.to_vec();
+    if data.len() >= 4 {
+        let n = data.len() - 4;
+        let crc = crc32fast::hash(&data[..n]);
+        data[n..].copy_from_slice(&crc.to_le_bytes());
+    }
+    let data = &data[..];
     let (mut inst, pristine) = take(k);
     let Ok(state) = inst.deserialize_fmu_state(data) else {
         put(k, inst, pristine);

@@ -47,9 +47,7 @@ pub fn all_inputs() -> bool {
 
 /// Whether an FMU state stays clear of the known open defects (see [`all_inputs`]): its
 /// parameters build at most [`MAX_FUZZ_PARTICLES`] (a mutated box would otherwise allocate
-/// gigabytes: issue 8 item 2), its particle positions are finite and within +-1e15 m (grid
-/// key overflow) and its inputs are finite (a NaN input is restored and read back with
-/// fmi2OK). Reads the state's serde form, where NaN and infinities become null.
+/// gigabytes and run for long). Reads the state's serde form.
 pub fn state_in_known_bounds<T: serde::Serialize>(state: &T) -> bool {
     let Ok(v) = serde_json::to_value(state) else {
         return false;
@@ -60,22 +58,9 @@ pub fn state_in_known_bounds<T: serde::Serialize>(state: &T) -> bool {
     if particle_estimate(&params).is_none_or(|n| n > MAX_FUZZ_PARTICLES) {
         return false;
     }
-    fn finite(v: &serde_json::Value, limit: f64) -> bool {
-        match v {
-            serde_json::Value::Number(n) => n.as_f64().is_some_and(|x| x.abs() <= limit),
-            serde_json::Value::Array(a) => a.iter().all(|x| finite(x, limit)),
-            serde_json::Value::Object(m) => m.values().all(|x| finite(x, limit)),
-            serde_json::Value::Bool(_) => true,
-            _ => false,
-        }
-    }
-    let sim = &v["sim"];
-    let x = if sim["D2"].is_null() {
-        &sim["D3"]["x"]
-    } else {
-        &sim["D2"]["x"]
-    };
-    x.is_array() && finite(x, 1e15) && finite(&v["inputs"], f64::MAX)
+    // Positions and inputs need no filter any more: states with huge or non-finite values are
+    // handled by the restore (they were open defects; see fuzz/README.md).
+    true
 }
 
 /// The first place where two serialisable values differ (JSON path and both values), for the

@@ -20,7 +20,7 @@ fn state(inst: &mut Instance) -> Vec<u8> {
     assert!(
         crate::state_in_known_bounds(&s),
         "state_in_known_bounds (fuzz/src/lib.rs) rejects a real FMU state: update it to the \
-         state's current serde layout (params, inputs, sim.D2/D3.x)"
+         state's current serde layout (params, inputs, sim.D2/D3.u)"
     );
     inst.serialize_fmu_state(&s).expect("serialise state")
 }

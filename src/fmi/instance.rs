@@ -1496,6 +1496,21 @@ mod tests {
     }
 
     #[test]
+    fn a_state_with_a_non_finite_input_is_refused() {
+        // Found by the fmu_state fuzz target: a state whose input was NaN was restored and the
+        // NaN read back with fmi2OK.
+        let mut i = small2d();
+        let before = i.get_fmu_state().unwrap();
+        let mut bad = before.clone();
+        bad.inputs.displacement[0][1] = f64::NAN;
+        let e = i.set_fmu_state(&bad).unwrap_err();
+        assert!(e.message().contains("non-finite"), "{}", e.message());
+        let bytes = i.serialize_fmu_state(&bad).unwrap();
+        assert!(i.deserialize_fmu_state(&bytes).is_err());
+        assert_eq!(i.get_fmu_state().unwrap(), before);
+    }
+
+    #[test]
     fn non_finite_energies_are_errors_not_stale_values() {
         // Issue 8.10: a NaN energy was handed out as the last finite value with fmi2OK.
         let mut i = small2d();

@@ -358,7 +358,7 @@ def make_client(scheduler: str | None, workers: int, processes: bool = True):
     if scheduler:
         return Client(scheduler)
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address=None if processes else ":0")
+                           dashboard_address=":0")
     return Client(cluster)
 
 
@@ -405,11 +405,13 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
     rows: list[dict] = done.to_dict("records") if len(done) else []
     if retry_failed and rows:
         rows = [r for r in rows if r.get("status") == "ok"]
+    changed = len(rows) != len(done)
     have = {r["scene_hash"] for r in rows}
     for r in prebuilt:
         if r["scene_hash"] not in have:
             rows.append(r)
             have.add(r["scene_hash"])
+            changed = True
     todo, seen = [], set()
     for h, params, scene in jobs:
         if h in have or h in seen:
@@ -422,7 +424,8 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
     if series is not None:
         series.mkdir(parents=True, exist_ok=True)
     if not todo:
-        write_results(out, rows, first)
+        if changed or not out.exists():
+            write_results(out, rows, first)
         return read_results(out)
 
     own = client is None

@@ -161,3 +161,21 @@ def test_fmu_sweep(client, tmp_path):
     assert ok["tip.uy"].abs().min() > 0
     bad = df[df.status == "failed"]
     assert "poisson" in bad["message"].iloc[0].lower()
+
+
+def test_killed_worker_task_is_rerun(client, base, tmp_path):
+    """The first run kills its worker process (SIGKILL of the subprocess's parent); Dask's nanny
+    restarts the worker, the scheduler re-runs the task, and the row is ok."""
+    marker = tmp_path / "killed-once"
+    fake = tmp_path / "mps-killer"
+    fake.write_text(f"""#!/bin/sh
+if [ ! -e {marker} ]; then touch {marker}; kill -9 $PPID; sleep 5; exit 9; fi
+exec {MPS} "$@"
+""")
+    fake.chmod(0o755)
+    table = write_table(tmp_path / "t.csv", ["bodies[0].material.young"], [[1.5e6]])
+    out = tmp_path / "res.csv"
+    df = sweep.sweep(sweep.read_table(table), out, base=base, client=client, mps=fake, progress=False)
+    assert marker.exists()  # the worker was killed once
+    assert len(df) == 1 and df["status"].iloc[0] == "ok", df[["status", "message"]]
+    client.wait_for_workers(2, timeout=60)

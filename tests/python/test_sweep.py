@@ -179,3 +179,19 @@ exec {MPS} "$@"
     assert marker.exists()  # the worker was killed once
     assert len(df) == 1 and df["status"].iloc[0] == "ok", df[["status", "message"]]
     client.wait_for_workers(2, timeout=60)
+
+
+def test_case3_mode_event_times(client, tmp_path):
+    """--mode case3 (`mps case3 --scene`): the case 3 scene to 0.08 s gives the first contact at
+    the paper's 0.07 s (0.35 m gap at 5 m/s, checks every 2.5 ms) and no fracture yet; an
+    unknown field is a failed row naming it."""
+    table = [{"end_time": 0.08}, {"end_time": 0.08, "solver.no_such_field": 1}]
+    out = tmp_path / "c3.csv"
+    df = sweep.sweep(table, out, base=ROOT / "scenes" / "case3_collision.json", client=client,
+                     mode="case3", mps=MPS, threads=1, progress=False)
+    ok = df[df.status == "ok"]
+    assert len(ok) == 1, df[["status", "message"]]
+    assert ok["first_contact"].iloc[0] == pytest.approx(0.07, abs=0.0025)
+    assert ok["final_broken_bonds"].iloc[0] == 0 and ok["particles"].iloc[0] == 5300
+    bad = df[df.status == "failed"]
+    assert "no_such_field" in bad["message"].iloc[0]

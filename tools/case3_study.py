@@ -29,6 +29,18 @@ MID_HEIGHT = {"bodies[cube].boxes[0].min": [0.0, 0.35, 0.75],
               "probes[cube_centre].point": [0.25, 0.6, 1.0],
               "probes[block_impact].point": [0.25, -0.125, 1.0]}
 
+BOTTOM = {"name": "bottom", "kind": "clamped", "body": "block",
+          "region": {"min": [-0.5, -0.25, -0.15], "max": [0.5, 0.0, -0.0125]}, "axes": None}
+BACK_Y = {"name": "back", "kind": "pinned", "body": "block",
+          "region": {"min": [-0.5, -0.25, 0.0], "max": [0.5, -0.2, 2.0]}, "axes": ["y"]}
+BRIDGE = dict(MID_HEIGHT, **{
+    "bodies[block].boxes": [{"min": [-0.5, -0.25, 0.0], "max": [0.5, 0.0, 2.0]},
+                            {"min": [-0.5, -0.25, -0.15], "max": [0.5, 0.0, 0.0]},
+                            {"min": [-0.5, -0.25, 2.0], "max": [0.5, 0.0, 2.15]}],
+    "boundaries": [BOTTOM, {"name": "top", "kind": "clamped", "body": "block",
+                            "region": {"min": [-0.5, -0.25, 2.0125], "max": [0.5, 0.0, 2.15]},
+                            "axes": None}]})
+
 
 def variants():
     v = []
@@ -43,6 +55,23 @@ def variants():
     v.append(("free block (no support), eps_max 0.08", {"solver.fracture_strain": 0.08, "boundaries": []}))
     v.append(("no fractured-surface contact, eps_max 0.08",
               {"solver.fracture_strain": 0.08, "solver.contact.fractured_surfaces": False}))
+    for eps in (0.08, 0.2):
+        v.append((f"bridge (both ends clamped, hit at mid-height), eps_max {eps}",
+                  dict(BRIDGE, **{"solver.fracture_strain": eps})))
+    v.append(("foot clamped + back face held in y, eps_max 0.08",
+              {"solver.fracture_strain": 0.08, "boundaries": [BOTTOM, BACK_Y]}))
+    v.append(("foot pinned (x, y, z held, rotation free), eps_max 0.08",
+              {"solver.fracture_strain": 0.08, "boundaries[bottom].kind": "pinned",
+               "boundaries[bottom].axes": ["x", "y", "z"]}))
+    # To the paper's 1.7 s, with and without contact between fractured surfaces.
+    for eps in (0.07, 0.08, 0.09):
+        for fc in (True, False):
+            v.append((f"to 1.7 s: eps_max {eps}, fractured-surface contact {'on' if fc else 'off'}",
+                      {"solver.fracture_strain": eps, "solver.contact.fractured_surfaces": fc,
+                       "end_time": 1.7}))
+    v.append(("to 1.7 s: impact at mid-height, eps_max 0.08, fractured-surface contact off",
+              dict(MID_HEIGHT, **{"solver.fracture_strain": 0.08,
+                                  "solver.contact.fractured_surfaces": False, "end_time": 1.7})))
     return v
 
 
@@ -62,16 +91,16 @@ def main() -> int:
     a = ap.parse_args()
     a.dir.mkdir(parents=True, exist_ok=True)
     vs = variants()
-    cols = sorted({k for _, p in vs for k in p}) + ["end_time"]
+    cols = sorted({k for _, p in vs for k in p} | {"end_time"})
     table_path = a.dir / "variations.csv"
     with open(table_path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["variant"] + cols)
         for label, p in vs:
-            row = dict(p, end_time=a.end)
+            row = dict({"end_time": a.end}, **p)
             w.writerow([label] + [json.dumps(row[c]) if c in row else "" for c in cols])
     # "variant" is a label, not a scene field: run with the other columns, keep it beside them.
-    table = [dict(p, end_time=a.end) for _, p in vs]
+    table = [dict({"end_time": a.end}, **p) for _, p in vs]
     out = a.dir / "results.csv"
     df = sweep.sweep(table, out, base=sweep.ROOT / "scenes" / "case3_collision.json", mode="case3",
                      workers=a.workers, threads=a.threads, mps=a.mps.resolve(), progress=True)
@@ -81,7 +110,7 @@ def main() -> int:
 
     for label, p in vs:
         s = copy.deepcopy(base)
-        for k, val in dict(p, end_time=a.end).items():
+        for k, val in dict({"end_time": a.end}, **p).items():
             sweep.set_path(s, k, val)
         labels[sweep.scene_hash(s)] = label
     df["variant"] = df["scene_hash"].map(labels)
@@ -89,16 +118,17 @@ def main() -> int:
     order = {label: i for i, (label, _) in enumerate(vs)}
     df = df.sort_values("variant", key=lambda s: s.map(order))
     df.to_csv(a.dir / "results_labelled.csv", index=False)
-    lines = ["| variant | status | first contact (s) | first fracture (s) | crack faces touch (s) | "
+    lines = ["| variant | status | end (s) | first contact (s) | first fracture (s) | crack faces touch (s) | "
              "separation (s) | broken bonds at 0.6 s / end | largest bond strain | failure |",
-             "|---|---|---|---|---|---|---|---|---|",
-             "| **paper** | | 0.07 | ~0.60 | ~0.70 | ~0.70 | - | - | overlap at 1.70 s (no fractured-surface contact) |"]
+             "|---|---|---|---|---|---|---|---|---|---|",
+             "| **paper** | | 1.70 | 0.07 | ~0.60 | ~0.70 | ~0.70 | - | - | overlap at 1.70 s (no fractured-surface contact) |"]
     for _, r in df.iterrows():
         bb = f"{fmt(r.get('broken_bonds_0.6s'), 0)} / {fmt(r.get('final_broken_bonds'), 0)}"
         fail = r.get("message") if r.get("status") != "ok" else ""
         if isinstance(fail, float):
             fail = ""
-        lines.append(f"| {r['variant']} | {r['status']} | {fmt(r.get('first_contact'))} | "
+        lines.append(f"| {r['variant']} | {r['status']} | {fmt(r.get('end_time'), 2)} | "
+                     f"{fmt(r.get('first_contact'))} | "
                      f"{fmt(r.get('first_fracture'))} | {fmt(r.get('first_fractured_surface_contact'))} | "
                      f"{fmt(r.get('separation'))} | {bb} | {fmt(r.get('max_bond_strain'))} | "
                      f"{(fail or '')[:90]} |")
@@ -114,6 +144,7 @@ def main() -> int:
         fig, ax = plt.subplots(figsize=(8, 0.45 * len(df) + 1.5))
         y = range(len(df))
         for col, mk, name in (("first_contact", "o", "first contact"),
+                              ("failure_time", "x", "overlap stop"),
                               ("first_fracture", "s", "first fracture"),
                               ("first_fractured_surface_contact", "^", "crack faces touch"),
                               ("separation", "D", "separation")):
@@ -126,7 +157,7 @@ def main() -> int:
         ax.set_yticklabels(df["variant"], fontsize=7)
         ax.invert_yaxis()
         ax.set_xlabel("time (s)")
-        ax.set_xlim(0, a.end)
+        ax.set_xlim(0, 1.75)
         ax.legend(fontsize=7, loc="lower right")
         ax.set_title(f"case 3 variants (dp 0.05, to {a.end} s) against the paper's events")
         fig.tight_layout()

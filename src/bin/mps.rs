@@ -80,9 +80,13 @@ enum Cmd {
         /// Particle spacing (m); the paper uses 0.05.
         #[arg(long, default_value_t = 0.05)]
         dp: f64,
-        /// End time (s).
-        #[arg(long, default_value_t = 1.7)]
-        end: f64,
+        /// End time (s) (default 1.7, or the end_time of --scene).
+        #[arg(long)]
+        end: Option<f64>,
+        /// Run this scene file (a case 3 variant, e.g. from a parameter sweep) instead of the
+        /// generated scenes; --dp and --fractured-contact are then ignored.
+        #[arg(long)]
+        scene: Option<PathBuf>,
         /// Only the variant with contact detection between fractured surfaces (on) or without (off).
         #[arg(long, value_parser = ["on", "off"])]
         fractured_contact: Option<String>,
@@ -294,11 +298,17 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
         Cmd::Case3 {
             dp,
             end,
+            scene: scene_file,
             fractured_contact,
             snapshots,
             json,
         } => {
             use mps_solid::case3::{case3_report, case3_scene, case3_text};
+            let from_file = match &scene_file {
+                Some(p) => Some(Scene::load(p).map_err(|e| e.to_string())?),
+                None => None,
+            };
+            let end = end.unwrap_or(from_file.as_ref().map_or(1.7, |s| s.end_time));
             if !(end.is_finite() && end > 0.0) {
                 return Err(format!(
                     "--end must be a positive finite time (s), got {}",
@@ -311,14 +321,22 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     num(dp)
                 ));
             }
-            let variants: Vec<bool> = match fractured_contact.as_deref() {
-                Some("on") => vec![true],
-                Some("off") => vec![false],
-                _ => vec![true, false],
+            let scenes: Vec<Scene> = match from_file {
+                Some(s) => vec![s],
+                None => {
+                    let variants: Vec<bool> = match fractured_contact.as_deref() {
+                        Some("on") => vec![true],
+                        Some("off") => vec![false],
+                        _ => vec![true, false],
+                    };
+                    variants
+                        .into_iter()
+                        .map(|fc| case3_scene(dp, fc, ElasticModel::Corrected))
+                        .collect()
+                }
             };
             let mut reports = Vec::new();
-            for fc in variants {
-                let mut scene = case3_scene(dp, fc, ElasticModel::Corrected);
+            for mut scene in scenes {
                 scene.end_time = end;
                 scene
                     .validate()

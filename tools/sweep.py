@@ -1,0 +1,601 @@
+#!/usr/bin/env python3
+"""Parameter sweeps of the MPS solver on dask.distributed.
+
+One row of a variations table (CSV: one column per scene field path such as
+``bodies[0].material.young``, ``bodies[block].material.poisson`` (a list element by its
+``name``), ``solver.fracture_strain``, ``end_time``; or, with ``--fmu``, one column per FMU
+parameter name) is one run. Each run writes the varied scene to a temporary directory and runs
+the ``mps`` program on it as a subprocess (``mps run SCENE --json``, or with ``--mode case3``
+``mps case3 --scene SCENE --json`` for contact/fracture event times), or simulates the FMU with
+fmpy, and returns one result row: the parameters, the sha256 of the varied scene (``scene_hash``),
+``status`` (ok / failed), ``message`` and the figures of the run's JSON summary.
+
+By default the runs go to a LocalCluster on this machine (``--workers`` processes, one thread
+each); with ``--scheduler ADDRESS`` the same sweep runs on an existing Dask cluster (its workers
+need the ``mps`` program at the path given by ``--mps``, or the FMU is sent to them). A run's
+failure (scene error, blow-up, overlap, timeout) is a row with status ``failed`` and its message
+and does not stop the sweep; a task whose worker dies is re-run elsewhere (Dask's retries).
+Results are written after each finished run; re-running a sweep skips the rows whose scene hash
+is already in the output (``--retry-failed`` re-runs the failed ones).
+
+Example::
+
+    python tools/sweep.py --base tests/data/small2d.json --table variations.csv --out results.csv
+    python tools/sweep.py --base scenes/case3_collision.json --mode case3 \\
+        --table study.csv --out study.parquet --scheduler tcp://10.0.0.5:8786 --plot study.png \\
+        --x solver.fracture_strain --y first_fracture
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import csv
+import hashlib
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_MPS = ROOT / "target" / "release" / "mps"
+
+# ---------------------------------------------------------------------------------------------
+# Scene field paths
+
+
+class PathError(ValueError):
+    """A field path that does not name a place in the scene."""
+
+
+_TOKEN = re.compile(r"\.?([^.\[\]]+)|\[([^\]]*)\]")
+
+
+def parse_path(path: str) -> list[Any]:
+    """``bodies[0].material.young`` -> ``["bodies", 0, "material", "young"]``; ``[block]`` selects
+    the list element whose ``name`` is ``block`` (kept as ``("name", "block")``)."""
+    keys: list[Any] = []
+    pos = 0
+    path = path.strip()
+    while pos < len(path):
+        m = _TOKEN.match(path, pos)
+        if not m or m.end() == pos:
+            raise PathError(f"cannot parse the field path {path!r} at character {pos}")
+        if m.group(1) is not None:
+            keys.append(m.group(1))
+        else:
+            idx = m.group(2).strip()
+            if re.fullmatch(r"-?\d+", idx):
+                keys.append(int(idx))
+            elif idx:
+                keys.append(("name", idx))
+            else:
+                raise PathError(f"empty index [] in the field path {path!r}")
+        pos = m.end()
+    if not keys:
+        raise PathError("empty field path")
+    return keys
+
+
+def set_path(scene: dict, path: str, value: Any) -> None:
+    """Sets ``value`` at ``path`` in ``scene``; missing object keys are created (the scene's
+    validation names an unknown field), a list index out of range or a missing name is an
+    error naming the path."""
+    keys = parse_path(path)
+    node: Any = scene
+    for i, key in enumerate(keys):
+        last = i == len(keys) - 1
+        where = path if last else f"{path} (at {keys[i]!r})"
+        if isinstance(key, str):
+            if not isinstance(node, dict):
+                raise PathError(f"{where}: not an object")
+            if last:
+                node[key] = value
+                return
+            if not isinstance(node.get(key), (dict, list)):
+                node[key] = {}
+            node = node[key]
+        else:
+            if not isinstance(node, list):
+                raise PathError(f"{where}: not a list")
+            if isinstance(key, tuple):
+                hits = [k for k, e in enumerate(node) if isinstance(e, dict) and e.get("name") == key[1]]
+                if not hits:
+                    raise PathError(f"{path}: no element named {key[1]!r}")
+                key = hits[0]
+            if not -len(node) <= key < len(node):
+                raise PathError(f"{path}: index {key} out of range (the list has {len(node)} elements)")
+            if last:
+                node[key] = value
+                return
+            node = node[key]
+
+
+def parse_value(text: str) -> Any:
+    """A table cell: JSON (numbers, true/false, null, lists, quoted strings), else the text."""
+    t = text.strip()
+    if t == "":
+        return None
+    try:
+        return json.loads(t)
+    except ValueError:
+        return t
+
+
+def scene_hash(scene: dict) -> str:
+    """sha256 of the canonical JSON of a scene (sorted keys, no spaces)."""
+    text = json.dumps(scene, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def read_table(path: Path) -> list[dict[str, Any]]:
+    """The variations table: one dict (column -> value) per row; blank cells are left out."""
+    with open(path, newline="") as f:
+        rows = []
+        for r in csv.DictReader(f):
+            rows.append({k.strip(): parse_value(v) for k, v in r.items() if k and v is not None and v.strip() != ""})
+    if not rows:
+        raise SystemExit(f"error: the table {path} has no rows")
+    return rows
+
+
+# ---------------------------------------------------------------------------------------------
+# One run (executed on a worker)
+
+
+def _num(x: Any) -> Any:
+    return x if not isinstance(x, float) or math.isfinite(x) else None
+
+
+def _figures_run(res: dict) -> dict:
+    """Figures of ``mps run --json``."""
+    out = {}
+    for k in ("particles", "bonds", "steps", "dt", "critical_dt", "end_time", "wall_time_s",
+              "pair_updates_per_s", "kinetic_energy", "strain_energy", "frequency_hz", "peak_m"):
+        if k in res:
+            out[k] = _num(res[k])
+    for name, u in res.get("final_displacement", []):
+        for ax, v in zip("xyz", u):
+            out[f"{name}.u{ax}"] = _num(v)
+    series = res.get("series") or {}
+    for name, disp in zip(series.get("probes", []), series.get("displacement", [])):
+        if disp:
+            out[f"{name}.umax"] = max(math.sqrt(sum(c * c for c in u)) for u in disp)
+    for name, f in res.get("final_reaction", []):
+        for ax, v in zip("xyz", f):
+            out[f"{name}.reaction_{ax}"] = _num(v)
+    return out
+
+
+def _figures_case3(rep: dict) -> dict:
+    """Figures of ``mps case3 --scene --json`` (contact/fracture events)."""
+    out = {}
+    for k in ("particles", "steps", "dt", "critical_dt", "end_time", "wall_time_s", "first_contact",
+              "first_fracture", "first_fractured_surface_contact", "separation", "failure_time",
+              "final_broken_bonds", "final_fragments", "final_large_fragments", "contact_searches"):
+        if k in rep:
+            out[k] = _num(rep[k])
+    hist = rep.get("history") or []
+    if hist:
+        out["max_bond_strain"] = max(h.get("max_bond_strain", 0.0) for h in hist)
+        for t in (0.4, 0.6, 1.0):
+            before = [h for h in hist if h["time"] <= t + 1e-9]
+            if before and before[-1]["time"] >= t - 1e-6:
+                out[f"broken_bonds_{t:g}s"] = before[-1]["broken_bonds"]
+    return out
+
+
+def _series_case3(rep: dict) -> str:
+    hist = rep.get("history") or []
+    if not hist:
+        return ""
+    cols = list(hist[0].keys())
+    lines = [",".join(cols)] + [",".join(str(h[c]) for c in cols) for h in hist]
+    return "\n".join(lines) + "\n"
+
+
+def run_scene(scene: dict, params: dict, mps: str, mode: str = "run", want_series: bool = False,
+              timeout: float | None = None, threads: int | None = None) -> dict:
+    """Writes ``scene`` to a temporary directory and runs ``mps`` on it; returns the result row
+    (never raises for a failed run: status ``failed`` and the message)."""
+    row: dict[str, Any] = dict(params)
+    row["scene_hash"] = scene_hash(scene)
+    row["status"] = "failed"
+    row["message"] = ""
+    row["worker_host"] = os.uname().nodename
+    t0 = time.perf_counter()
+    tmp = tempfile.mkdtemp(prefix="mps-sweep-")
+    try:
+        path = Path(tmp) / "scene.json"
+        path.write_text(json.dumps(scene, indent=1))
+        if mode == "case3":
+            cmd = [mps, "case3", "--scene", str(path), "--json"]
+        else:
+            cmd = [mps, "run", str(path), "--out", str(Path(tmp) / "out"), "--json"]
+        try:
+            env = dict(os.environ)
+            if threads:
+                env["RAYON_NUM_THREADS"] = str(threads)
+            p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+        except subprocess.TimeoutExpired:
+            row["message"] = f"timeout after {timeout} s"
+            return row
+        except OSError as e:
+            row["message"] = f"cannot run {mps}: {e}"
+            return row
+        err = "\n".join(l for l in p.stderr.splitlines() if l.startswith("error"))
+        res = None
+        if p.stdout.strip():
+            try:
+                res = json.loads(p.stdout)
+            except ValueError:
+                res = None
+        if res is None:
+            row["message"] = err or p.stderr.strip()[-500:] or f"exit code {p.returncode}, no output"
+            return row
+        if mode == "case3":
+            rep = res[0] if isinstance(res, list) else res
+            row.update(_figures_case3(rep))
+            if want_series:
+                row["_series"] = _series_case3(rep)
+            if rep.get("failure"):
+                row["message"] = rep["failure"]
+                return row
+        else:
+            row.update(_figures_run(res))
+            if want_series:
+                csv_path = Path(tmp) / "out" / "probes.csv"
+                row["_series"] = csv_path.read_text() if csv_path.exists() else ""
+            if res.get("error"):
+                row["message"] = res["error"]
+                return row
+        if p.returncode != 0:
+            row["message"] = err or f"exit code {p.returncode}"
+            return row
+        row["status"] = "ok"
+        return row
+    finally:
+        row["elapsed_s"] = time.perf_counter() - t0
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def run_fmu(fmu_bytes: bytes, fmu_hash: str, params: dict, stop_time: float | None,
+            step_size: float | None, want_series: bool = False) -> dict:
+    """Simulates the FMU (fmpy) with ``params`` as start values; the row holds each output's
+    final value and largest magnitude."""
+    row: dict[str, Any] = dict(params)
+    key = json.dumps({"fmu": fmu_hash, "params": params, "stop": stop_time, "step": step_size},
+                     sort_keys=True)
+    row["scene_hash"] = hashlib.sha256(key.encode()).hexdigest()
+    row["status"] = "failed"
+    row["message"] = ""
+    row["worker_host"] = os.uname().nodename
+    t0 = time.perf_counter()
+    tmp = tempfile.mkdtemp(prefix="mps-sweep-fmu-")
+    try:
+        import numpy as np
+        from fmpy import simulate_fmu
+
+        path = Path(tmp) / "model.fmu"
+        path.write_bytes(fmu_bytes)
+        messages: list[str] = []
+
+        def logger(_component, _instance, status, _category, message):
+            if status > 1:  # warning and above
+                messages.append(message.decode() if isinstance(message, bytes) else str(message))
+
+        try:
+            res = simulate_fmu(str(path), start_values=dict(params), stop_time=stop_time,
+                               output_interval=step_size, step_size=step_size, logger=logger,
+                               fmi_call_logger=None)
+        except Exception as e:  # noqa: BLE001 - any FMU failure is a failed row
+            row["message"] = (" | ".join(messages[-3:]) + " | " if messages else "") + str(e)
+            return row
+        names = [n for n in res.dtype.names if n != "time"]
+        row["end_time"] = float(res["time"][-1])
+        for n in names:
+            col = np.asarray(res[n], dtype=float)
+            row[n] = _num(float(col[-1]))
+            row[f"{n}.absmax"] = _num(float(np.max(np.abs(col))))
+        if want_series:
+            lines = [",".join(res.dtype.names)]
+            lines += [",".join(repr(float(v)) for v in r) for r in res]
+            row["_series"] = "\n".join(lines) + "\n"
+        row["status"] = "ok"
+        return row
+    finally:
+        row["elapsed_s"] = time.perf_counter() - t0
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# Results file
+
+
+def read_results(path: Path):
+    import pandas as pd
+
+    if not path.exists():
+        return pd.DataFrame()
+    if path.suffix == ".parquet":
+        return pd.read_parquet(path)
+    return pd.read_csv(path)
+
+
+def write_results(path: Path, rows: list[dict], columns_first: list[str]) -> None:
+    import pandas as pd
+
+    df = pd.DataFrame(rows)
+    first = [c for c in columns_first if c in df.columns]
+    df = df[first + [c for c in df.columns if c not in first]]
+    tmp = path.with_name(path.name + ".tmp")
+    if path.suffix == ".parquet":
+        # Mixed-type parameter columns (numbers and text) are stored as text.
+        for c in df.columns:
+            if df[c].dtype == object:
+                df[c] = df[c].map(lambda v: None if v is None or (isinstance(v, float) and math.isnan(v)) else str(v))
+        df.to_parquet(tmp, index=False)
+    else:
+        df.to_csv(tmp, index=False)
+    os.replace(tmp, path)
+
+
+# ---------------------------------------------------------------------------------------------
+# The sweep
+
+
+def make_client(scheduler: str | None, workers: int, processes: bool = True):
+    """A client of the cluster at ``scheduler``, or of a new LocalCluster of ``workers`` workers
+    with one thread each (each run is a subprocess, so threads would only share the cores)."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler)
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                           dashboard_address=":0")
+    return Client(cluster)
+
+
+def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path | None = None,
+          client=None, scheduler: str | None = None, workers: int = 2, mode: str = "run",
+          mps: Path = DEFAULT_MPS, series: Path | None = None, retries: int = 2,
+          timeout: float | None = None, retry_failed: bool = False, stop_time: float | None = None,
+          step_size: float | None = None, processes: bool = True, progress: bool = True,
+          threads: int | None = None):
+    """Runs every row of ``table`` not already in ``out``; returns the results DataFrame."""
+    from distributed import as_completed
+    import pandas as pd
+
+    if (base is None) == (fmu is None):
+        raise ValueError("give exactly one of base (a scene) or fmu")
+    params_cols = sorted({k for r in table for k in r})
+    first = params_cols + ["scene_hash", "status", "message"]
+
+    # The jobs: (hash, params, scene) with the scene built and hashed on the client.
+    jobs = []
+    prebuilt: list[dict] = []
+    if base is not None:
+        base_scene = json.loads(Path(base).read_text())
+        for params in table:
+            scene = copy.deepcopy(base_scene)
+            try:
+                for k, v in params.items():
+                    set_path(scene, k, v)
+            except PathError as e:
+                row = dict(params, scene_hash=scene_hash({"base": base_scene, "params": params}),
+                           status="failed", message=f"bad field path: {e}")
+                prebuilt.append(row)
+                continue
+            jobs.append((scene_hash(scene), params, scene))
+    else:
+        fmu_bytes = Path(fmu).read_bytes()
+        fmu_hash = hashlib.sha256(fmu_bytes).hexdigest()
+        for params in table:
+            key = json.dumps({"fmu": fmu_hash, "params": params, "stop": stop_time, "step": step_size},
+                             sort_keys=True)
+            jobs.append((hashlib.sha256(key.encode()).hexdigest(), params, None))
+
+    done = read_results(out)
+    rows: list[dict] = done.to_dict("records") if len(done) else []
+    if retry_failed and rows:
+        rows = [r for r in rows if r.get("status") == "ok"]
+    changed = len(rows) != len(done)
+    have = {r["scene_hash"] for r in rows}
+    for r in prebuilt:
+        if r["scene_hash"] not in have:
+            rows.append(r)
+            have.add(r["scene_hash"])
+            changed = True
+    todo, seen = [], set()
+    for h, params, scene in jobs:
+        if h in have or h in seen:
+            continue
+        seen.add(h)
+        todo.append((h, params, scene))
+    skipped = len(jobs) - len(todo)
+    print(f"sweep: {len(table)} rows, {skipped} already in {out} (or repeated), {len(todo)} to run",
+          file=sys.stderr)
+    if series is not None:
+        series.mkdir(parents=True, exist_ok=True)
+    if not todo:
+        if changed or not out.exists():
+            write_results(out, rows, first)
+        return read_results(out)
+
+    own = client is None
+    if own:
+        client = make_client(scheduler, workers, processes)
+    try:
+        if __name__ != "__main__":
+            # Workers need this module's code but not this file: send it by value.
+            import cloudpickle
+
+            cloudpickle.register_pickle_by_value(sys.modules[__name__])
+        if client.dashboard_link and progress:
+            print(f"sweep: dashboard {client.dashboard_link}", file=sys.stderr)
+        want_series = series is not None
+        futures = []
+        if base is not None:
+            for h, params, scene in todo:
+                futures.append(client.submit(run_scene, scene, params, str(mps), mode, want_series,
+                                             timeout, threads, key=f"mps-run-{h}", retries=retries,
+                                             pure=False))
+        else:
+            blob = client.scatter(fmu_bytes, broadcast=True)
+            for h, params, _ in todo:
+                futures.append(client.submit(run_fmu, blob, fmu_hash, params, stop_time, step_size,
+                                             want_series, key=f"mps-fmu-{h}", retries=retries,
+                                             pure=False))
+        bar = None
+        if progress:
+            bar = _start_progress(futures)
+        n = 0
+        last_write = 0.0
+        for fut in as_completed(futures):
+            n += 1
+            try:
+                row = fut.result()
+            except Exception as e:  # noqa: BLE001 - e.g. KilledWorker after the retries
+                h = fut.key.split("-", 2)[2]
+                params = next(p for hh, p, _ in todo if hh == h)
+                row = dict(params, scene_hash=h, status="failed",
+                           message=f"task failed on the cluster: {type(e).__name__}: {e}")
+            text = row.pop("_series", None)
+            if text and series is not None:
+                (series / f"{row['scene_hash'][:16]}.csv").write_text(text)
+            rows.append(row)
+            if not progress:
+                pass
+            elif bar is None:
+                print(f"[{n}/{len(futures)}] {row['status']:6} {row['scene_hash'][:12]} "
+                      f"{row.get('message', '')[:100]}", file=sys.stderr)
+            now = time.monotonic()
+            if now - last_write > 2.0 or n == len(futures):
+                write_results(out, rows, first)
+                last_write = now
+        if bar is not None:
+            bar.join(timeout=5)
+    finally:
+        if own:
+            cluster = getattr(client, "cluster", None)
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    return read_results(out)
+
+
+def _start_progress(futures):
+    """Dask's text progress bar, in a thread so that results are written as they arrive."""
+    import threading
+
+    try:
+        from distributed.diagnostics.progressbar import progress as dask_progress
+    except ImportError:
+        return None
+    if not sys.stderr.isatty():
+        return None
+    t = threading.Thread(target=lambda: dask_progress(futures, notebook=False), daemon=True)
+    t.start()
+    return t
+
+
+# ---------------------------------------------------------------------------------------------
+# Plots
+
+
+def plot(df, x: str, ys: list[str], path: Path, hue: str | None = None) -> None:
+    """Each y column against x (ok runs), one line per value of ``hue``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = df[df["status"] == "ok"] if "status" in df else df
+    fig, axes = plt.subplots(len(ys), 1, figsize=(6, 3 * len(ys)), squeeze=False)
+    for ax, y in zip(axes[:, 0], ys):
+        if y not in ok:
+            ax.set_title(f"{y}: no such column")
+            continue
+        groups = ok.groupby(hue) if hue and hue in ok else [(None, ok)]
+        for name, g in groups:
+            g = g.sort_values(x)
+            ax.plot(g[x], g[y], "o-", label=f"{hue}={name}" if name is not None else None)
+        ax.set_xlabel(x)
+        ax.set_ylabel(y)
+        if hue:
+            ax.legend(fontsize=8)
+        ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--base", type=Path, help="base scene (JSON)")
+    src.add_argument("--fmu", type=Path, help="FMU to simulate with fmpy (columns: parameter names)")
+    ap.add_argument("--table", type=Path, required=True,
+                    help="CSV of variations, one column per field path or FMU parameter")
+    ap.add_argument("--out", type=Path, required=True, help="results .csv or .parquet")
+    ap.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:8786)")
+    ap.add_argument("--workers", type=int, default=max(1, os.cpu_count() or 1),
+                    help="LocalCluster workers (default: the number of cores)")
+    ap.add_argument("--mode", choices=["run", "case3"], default="run",
+                    help="run: `mps run` (probes, frequency, peak); case3: `mps case3 --scene` "
+                         "(contact, fracture, separation times, broken bonds)")
+    ap.add_argument("--mps", type=Path, default=Path(os.environ.get("MPS_BIN", DEFAULT_MPS)),
+                    help="the mps program (on a cluster: its path on the workers)")
+    ap.add_argument("--series", type=Path, help="write each run's series to DIR/<hash>.csv")
+    ap.add_argument("--threads", type=int,
+                    help="solver threads per run (RAYON_NUM_THREADS; default: all cores; "
+                         "cores / workers avoids oversubscription)")
+    ap.add_argument("--retries", type=int, default=2, help="re-runs of a task whose worker died")
+    ap.add_argument("--timeout", type=float, help="seconds per run (then: failed)")
+    ap.add_argument("--retry-failed", action="store_true", help="re-run rows recorded as failed")
+    ap.add_argument("--stop-time", type=float, help="FMU: stop time (s)")
+    ap.add_argument("--step-size", type=float, help="FMU: communication step (s)")
+    ap.add_argument("--plot", type=Path, help="write a PNG of --y against --x")
+    ap.add_argument("--x", help="plot: x column")
+    ap.add_argument("--y", action="append", default=[], help="plot: y column (repeatable)")
+    ap.add_argument("--hue", help="plot: one line per value of this column")
+    ap.add_argument("--quiet", action="store_true", help="no progress output")
+    a = ap.parse_args(argv)
+    if a.out.suffix not in (".csv", ".parquet"):
+        ap.error(f"--out must end in .csv or .parquet, got {a.out}")
+    if a.base is not None and not a.base.is_file():
+        ap.error(f"--base {a.base}: no such file")
+    if a.fmu is not None and not a.fmu.is_file():
+        ap.error(f"--fmu {a.fmu}: no such file")
+    if not a.table.is_file():
+        ap.error(f"--table {a.table}: no such file")
+    if a.base is not None and not a.scheduler and not Path(a.mps).is_file():
+        ap.error(f"--mps {a.mps}: no such program (cargo build --release)")
+    if a.plot and (not a.x or not a.y):
+        ap.error("--plot needs --x and at least one --y")
+    table = read_table(a.table)
+    df = sweep(table, a.out, base=a.base, fmu=a.fmu, scheduler=a.scheduler, workers=a.workers,
+               mode=a.mode, mps=Path(a.mps).resolve() if not a.scheduler else a.mps,
+               series=a.series, retries=a.retries, timeout=a.timeout,
+               retry_failed=a.retry_failed, stop_time=a.stop_time, step_size=a.step_size,
+               progress=not a.quiet, threads=a.threads)
+    n_ok = int((df["status"] == "ok").sum()) if len(df) else 0
+    print(f"sweep: {n_ok} ok, {len(df) - n_ok} failed, results in {a.out}", file=sys.stderr)
+    if a.plot:
+        plot(df, a.x, a.y, a.plot, a.hue)
+        print(f"sweep: plot {a.plot}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -170,6 +170,9 @@ fn contact_impact_returns_its_energy() {
             100.0 * (s1 / s0 - 1.0),
             100.0 * (smax / s0 - 1.0)
         );
-        assert!((s1 / s0 - 1.0).abs() < 0.02, "safety {safety}: energy changed");
+        assert!(
+            (s1 / s0 - 1.0).abs() < 0.02,
+            "safety {safety}: energy changed"
+        );
     }
 }

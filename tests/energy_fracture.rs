@@ -48,8 +48,10 @@ fn run(mut w: World<2>, t_end: f64) -> (f64, f64, u64) {
 fn fracture_on_impact_creates_no_energy() {
     for vel in [[0.0, -5.0], [5.0, 0.0], [-5.0, 0.0]] {
         let (e0, emax, broken) = run(small2d(vel, true), 5e-3);
-        eprintln!("v = {vel:?}: E0 = {e0:.2} J, max E = {emax:.2} J ({:+.3} %), broken pairs {broken}",
-            100.0 * (emax / e0 - 1.0));
+        eprintln!(
+            "v = {vel:?}: E0 = {e0:.2} J, max E = {emax:.2} J ({:+.3} %), broken pairs {broken}",
+            100.0 * (emax / e0 - 1.0)
+        );
         assert!(broken > 0, "the scenario must break bonds");
         // Symplectic Euler's energy measured at the step ends fluctuates by O(dt omega) of the
         // energy in the highest modes around a conserved shadow energy; 1 % covers that at the

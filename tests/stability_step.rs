@@ -100,7 +100,10 @@ fn high_damping_is_stable_at_the_default_safety() {
         };
         let mut w = cantilever(12, opts);
         let umax = run(&mut w, 2000).unwrap_or_else(|e| panic!("damping {c}: {e}"));
-        assert!(umax < 0.3 * L0, "damping {c}: displacement grew to {umax} m");
+        assert!(
+            umax < 0.3 * L0,
+            "damping {c}: displacement grew to {umax} m"
+        );
         assert!(w.max_dt() * c <= 2.0);
     }
 }
@@ -122,8 +125,14 @@ fn damped_step_bound_is_the_exact_limit() {
         };
         // Without damping the orbit near the limit is an ellipse stretched by
         // 1 / sqrt(1 - (omega dt / 2)^2) (22 at 0.999), hence the bound of 100.
-        assert!(amp(0.999 * dt_c) < 100.0, "c = {c}: unstable below the bound");
-        assert!(!(amp(1.001 * dt_c) < 100.0), "c = {c}: stable above the bound");
+        assert!(
+            amp(0.999 * dt_c) < 100.0,
+            "c = {c}: unstable below the bound"
+        );
+        assert!(
+            !(amp(1.001 * dt_c) < 100.0),
+            "c = {c}: stable above the bound"
+        );
     }
     assert_eq!(critical_step(omega, 0.0), 2.0 / omega);
     assert_eq!(critical_step(0.0, 50.0), 2.0 / 50.0);

@@ -11,6 +11,14 @@
 //! law is conservative, U(r) = k_c (l0 - r)^2 / 2, frictionless (Eq. (31) has no reference
 //! vector across a contact) and has no pressure part (no volumetric strain across a contact).
 //!
+//! Contact distance of a pair: l0 between bodies and between particles of one body that were
+//! never bonded (farther than re > l0 apart in the reference state); min(l0, |r0_ij|) across a
+//! broken bond. A bond breaks only in tension, longer than |r0_ij|, so the contact across it
+//! never starts inside its range: breaking releases the bond's energy and adds none (issue 7:
+//! a face layer half a spacing from the next, as the holder of tests/data/small2d.json, got
+//! k_c (l0/2)^2 / 2 of contact energy per broken pair, 547 J -> 985 J). The overlap limit of a
+//! pair is overlap_fraction times its contact distance.
+//!
 //! Contact search: a Verlet list over surface particles only, built with a cell grid of side
 //! (1 + skin) l0 and rebuilt when a surface particle has moved more than skin l0 / 2 since the
 //! last build, or when the set of surface particles or bonds changed (fracture). Forces are
@@ -56,6 +64,8 @@ pub struct Overlap {
     pub i: usize,
     pub j: usize,
     pub distance: f64,
+    /// The pair's overlap limit: overlap_fraction times its contact distance (m).
+    pub limit: f64,
 }
 
 /// Contact state: surface flags, number densities and the Verlet pair list.
@@ -94,7 +104,7 @@ pub struct Contact<const D: usize> {
     /// Contact force per surface particle (scratch).
     f_s: Vec<Vect<D>>,
     /// First overlap found per surface particle (scratch).
-    hit: Vec<Option<(u32, f64)>>,
+    hit: Vec<Option<(u32, f64, f64)>>,
     pub needs_rebuild: bool,
     /// Pair-list builds so far.
     pub searches: u64,
@@ -308,7 +318,7 @@ impl<const D: usize> Contact<D> {
                     // Overlap: closer than the fraction of the pair's contact distance.
                     if d < frac * c {
                         if hit.is_none() {
-                            hit = Some((j as u32, d));
+                            hit = Some((j as u32, d, frac * c));
                         }
                         continue;
                     }
@@ -325,10 +335,11 @@ impl<const D: usize> Contact<D> {
             force[i as usize] += self.f_s[s];
         }
         self.hit.iter().enumerate().find_map(|(s, h)| {
-            h.map(|(j, d)| Overlap {
+            h.map(|(j, d, limit)| Overlap {
                 i: self.surface_ids[s] as usize,
                 j: j as usize,
                 distance: d,
+                limit,
             })
         })
     }

@@ -21,7 +21,7 @@ pub enum SimError {
         particle: usize,
         body: String,
     },
-    #[error("particles overlap at t = {time:.6e} s (step {step}): particle {} of body '{}' and particle {} of body '{}', not joined by an intact bond, are {distance:.4e} m apart, below the overlap limit {limit:.4e} m (contact.overlap_fraction x l0){}", particles[0], bodies[0], particles[1], bodies[1], if bodies[0] == bodies[1] { "; they are parts of one body separated by fracture" } else { "" })]
+    #[error("particles overlap at t = {time:.6e} s (step {step}): particle {} of body '{}' and particle {} of body '{}', not joined by an intact bond, are {distance:.4e} m apart, below the overlap limit {limit:.4e} m (contact.overlap_fraction x the pair's contact distance, l0 or the reference length of a broken bond){}", particles[0], bodies[0], particles[1], bodies[1], if bodies[0] == bodies[1] { "; they are parts of one body separated by fracture" } else { "" })]
     Overlap {
         time: f64,
         step: u64,
@@ -30,7 +30,7 @@ pub enum SimError {
         particles: [usize; 2],
         /// Their distance (m).
         distance: f64,
-        /// The overlap limit overlap_fraction x l0 (m).
+        /// The overlap limit: overlap_fraction times the pair's contact distance (m).
         limit: f64,
     },
     #[error("invalid input: {0}")]
@@ -378,7 +378,7 @@ where
             ],
             particles: [o.i, o.j],
             distance: o.distance,
-            limit: self.options.contact.overlap_fraction * self.l0,
+            limit: o.limit,
         }
     }
 

@@ -47,9 +47,9 @@ fn undamped_cantilever_keeps_its_energy_over_100_periods() {
     .unwrap();
     let root = xmin + 1.5 * L0;
     let mut s = w.state();
-    for i in 0..w.len() {
+    for (i, p) in pts.iter().enumerate() {
         if w.p.fix[i] == 0 {
-            let xi = (pts[i][0] - root) / (xmax - root);
+            let xi = (p[0] - root) / (xmax - root);
             s.v[i] = Vector2::new(0.0, 0.05 * xi * xi);
         }
     }

@@ -170,9 +170,15 @@ fn contact_impact_returns_its_energy() {
             100.0 * (s1 / s0 - 1.0),
             100.0 * (smax / s0 - 1.0)
         );
+        // The contact force switches on with a kink at r = l0 that the step does not resolve:
+        // measured -1.7 % (0.8), +0.56 % (0.4), +0.05 % (0.2). The 0.2 % holds at
+        // safety 0.2 only; at the larger steps 2 % bounds today's contact law.
+        let tol = if safety <= 0.2 { 0.002 } else { 0.02 };
         assert!(
-            (s1 / s0 - 1.0).abs() < 0.02,
-            "safety {safety}: energy changed"
+            (s1 / s0 - 1.0).abs() < tol && (e1 / e0 - 1.0).abs() < tol,
+            "safety {safety}: energy changed by {} (plain {})",
+            s1 / s0 - 1.0,
+            e1 / e0 - 1.0
         );
     }
 }

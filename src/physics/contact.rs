@@ -11,6 +11,14 @@
 //! law is conservative, U(r) = k_c (l0 - r)^2 / 2, frictionless (Eq. (31) has no reference
 //! vector across a contact) and has no pressure part (no volumetric strain across a contact).
 //!
+//! Contact distance of a pair: l0 between bodies and between particles of one body that were
+//! never bonded (farther than re > l0 apart in the reference state); min(l0, |r0_ij|) across a
+//! broken bond. A bond breaks only in tension, longer than |r0_ij|, so the contact across it
+//! never starts inside its range: breaking releases the bond's energy and adds none (issue 7:
+//! a face layer half a spacing from the next, as the holder of tests/data/small2d.json, got
+//! k_c (l0/2)^2 / 2 of contact energy per broken pair, 547 J -> 985 J). The overlap limit of a
+//! pair is overlap_fraction times its contact distance.
+//!
 //! Contact search: a Verlet list over surface particles only, built with a cell grid of side
 //! (1 + skin) l0 and rebuilt when a surface particle has moved more than skin l0 / 2 since the
 //! last build, or when the set of surface particles or bonds changed (fracture). Forces are
@@ -24,7 +32,8 @@ use super::params::ContactOptions;
 use super::particles::rel;
 use crate::par_iter_mut;
 
-/// Magnitude of the repulsive contact force at distance r (N) for the pair stiffness k_c.
+/// Magnitude of the repulsive contact force at distance r (N) for the pair stiffness k_c and the
+/// pair's contact distance `l0` (the spacing, or a shorter reference length of a broken bond).
 #[inline(always)]
 pub fn force_magnitude(kc: f64, l0: f64, r: f64) -> f64 {
     if r < l0 {
@@ -55,6 +64,8 @@ pub struct Overlap {
     pub i: usize,
     pub j: usize,
     pub distance: f64,
+    /// The pair's overlap limit: overlap_fraction times its contact distance (m).
+    pub limit: f64,
 }
 
 /// Contact state: surface flags, number densities and the Verlet pair list.
@@ -86,10 +97,14 @@ pub struct Contact<const D: usize> {
     start: Vec<u32>,
     nbr: Vec<u32>,
     repel: Vec<bool>,
+    /// Contact distance per list entry (m): l0 between bodies; min(l0, |X_j - X_i|) within a body,
+    /// so a pair whose bond breaks is never inside its contact range at the moment of breaking
+    /// (a bond broken in tension is longer than its reference length).
+    reach: Vec<f64>,
     /// Contact force per surface particle (scratch).
     f_s: Vec<Vect<D>>,
     /// First overlap found per surface particle (scratch).
-    hit: Vec<Option<(u32, f64)>>,
+    hit: Vec<Option<(u32, f64, f64)>>,
     pub needs_rebuild: bool,
     /// Pair-list builds so far.
     pub searches: u64,
@@ -145,6 +160,7 @@ impl<const D: usize> Contact<D> {
             start: vec![0],
             nbr: Vec::new(),
             repel: Vec::new(),
+            reach: Vec::new(),
             f_s: Vec::new(),
             hit: Vec::new(),
             needs_rebuild: true,
@@ -218,7 +234,8 @@ impl<const D: usize> Contact<D> {
         let ids = &self.surface_ids;
         let same_body = self.same_body;
         let repel_same = self.opts.fractured_surfaces;
-        let mut lists: Vec<Vec<(u32, bool)>> = vec![Vec::new(); ids.len()];
+        let l0 = self.l0;
+        let mut lists: Vec<Vec<(u32, bool, f64)>> = vec![Vec::new(); ids.len()];
         par_iter_mut!(lists).enumerate().for_each(|(s, out)| {
             let i = ids[s] as usize;
             grid.for_each_near(x, &x[i], reach, |j| {
@@ -227,9 +244,17 @@ impl<const D: usize> Contact<D> {
                     return;
                 }
                 if body[ju] != body[i] {
-                    out.push((j, true));
-                } else if same_body && !intact_bond(bonds, i, j) {
-                    out.push((j, repel_same));
+                    out.push((j, true, l0));
+                } else if same_body {
+                    match bond_of(bonds, i, j) {
+                        // Intact bond: no contact.
+                        Some(k) if bonds.w0[k] != 0.0 => {}
+                        // Broken bond: contact from its reference length on (the same to the
+                        // bit in both directions, r0_ji = -r0_ij).
+                        Some(k) => out.push((j, repel_same, l0.min(bonds.r0[k].norm()))),
+                        // Never bonded: farther than re > l0 in the reference state.
+                        None => out.push((j, repel_same, l0)),
+                    }
                 }
             });
             out.sort_unstable_by_key(|e| e.0);
@@ -238,10 +263,12 @@ impl<const D: usize> Contact<D> {
         self.start.push(0);
         self.nbr.clear();
         self.repel.clear();
+        self.reach.clear();
         for l in &lists {
-            for &(j, r) in l {
+            for &(j, r, c) in l {
                 self.nbr.push(j);
                 self.repel.push(r);
+                self.reach.push(c);
             }
             self.start.push(self.nbr.len() as u32);
         }
@@ -261,15 +288,14 @@ impl<const D: usize> Contact<D> {
         let ns = self.surface_ids.len();
         self.f_s.resize(ns, Vect::<D>::zeros());
         self.hit.resize(ns, None);
-        let l0 = self.l0;
-        let l02 = l0 * l0;
-        let amin = self.opts.overlap_fraction * l0;
+        let frac = self.opts.overlap_fraction;
         let nb = self.n_bodies;
-        let (ids, start, nbr, repel, k0) = (
+        let (ids, start, nbr, repel, reach, k0) = (
             &self.surface_ids,
             &self.start,
             &self.nbr,
             &self.repel,
+            &self.reach,
             &self.k0,
         );
         par_iter_mut!(self.f_s)
@@ -284,20 +310,22 @@ impl<const D: usize> Contact<D> {
                     let j = nbr[e] as usize;
                     let r = rel(x0, u, i, j);
                     let r2 = r.norm_squared();
-                    if r2 >= l02 {
+                    let c = reach[e];
+                    if r2 >= c * c {
                         continue;
                     }
                     let d = r2.sqrt();
-                    if d < amin {
+                    // Overlap: closer than the fraction of the pair's contact distance.
+                    if d < frac * c {
                         if hit.is_none() {
-                            hit = Some((j as u32, d));
+                            hit = Some((j as u32, d, frac * c));
                         }
                         continue;
                     }
                     if repel[e] {
                         let k = k0[bi * nb + body[j] as usize];
                         // f_i = -k_c (l0 - r) r_ij / r
-                        acc -= r * (force_magnitude(k, l0, d) / d);
+                        acc -= r * (force_magnitude(k, c, d) / d);
                     }
                 }
                 *f_out = acc;
@@ -307,10 +335,11 @@ impl<const D: usize> Contact<D> {
             force[i as usize] += self.f_s[s];
         }
         self.hit.iter().enumerate().find_map(|(s, h)| {
-            h.map(|(j, d)| Overlap {
+            h.map(|(j, d, limit)| Overlap {
                 i: self.surface_ids[s] as usize,
                 j: j as usize,
                 distance: d,
+                limit,
             })
         })
     }
@@ -326,7 +355,7 @@ impl<const D: usize> Contact<D> {
                     continue;
                 }
                 let k = self.k0[body[i] as usize * self.n_bodies + body[j] as usize];
-                total += potential(k, self.l0, rel(x0, u, i, j).norm());
+                total += potential(k, self.reach[e], rel(x0, u, i, j).norm());
             }
         }
         total
@@ -339,7 +368,8 @@ impl<const D: usize> Contact<D> {
             let i = i as usize;
             for e in self.start[s] as usize..self.start[s + 1] as usize {
                 let j = self.nbr[e] as usize;
-                if j > i && self.repel[e] && rel(x0, u, i, j).norm_squared() < self.l0 * self.l0 {
+                let c = self.reach[e];
+                if j > i && self.repel[e] && rel(x0, u, i, j).norm_squared() < c * c {
                     count += 1;
                 }
             }
@@ -381,11 +411,12 @@ impl<const D: usize> Contact<D> {
     }
 }
 
-/// Whether particles i and j are joined by an intact bond (the bonds of i are sorted by j).
-fn intact_bond<const D: usize>(bonds: &Bonds<D>, i: usize, j: u32) -> bool {
+/// The bond of particle i to particle j (intact or broken), if any (the bonds of i are sorted
+/// by j).
+fn bond_of<const D: usize>(bonds: &Bonds<D>, i: usize, j: u32) -> Option<usize> {
     let r = bonds.of(i);
-    match bonds.nbr[r.clone()].binary_search(&j) {
-        Ok(k) => bonds.w0[r.start + k] != 0.0,
-        Err(_) => false,
-    }
+    bonds.nbr[r.clone()]
+        .binary_search(&j)
+        .ok()
+        .map(|k| r.start + k)
 }

@@ -3,6 +3,8 @@
 //! (tests/c/logger_shim.c, compiled with the system C compiler) capturing every message.
 #![allow(non_snake_case)]
 
+mod common;
+
 use libloading::Library;
 use mps_solid::fmi::model_description::guid;
 use mps_solid::fmi::variables::VariableTable;
@@ -91,28 +93,6 @@ api! {
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The cdylib cargo built with this test: target/<profile>/deps/libmps_solid.so (cargo builds
-/// the library's cdylib for integration tests of the package but uplifts it to
-/// target/<profile>/ only in `cargo build`, so the copy there may be stale): the newer of the two.
-fn library_path() -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    let deps = exe.parent().unwrap();
-    let profile = if deps.ends_with("deps") {
-        deps.parent().unwrap()
-    } else {
-        deps
-    };
-    let mtime = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    [
-        profile.join("deps/libmps_solid.so"),
-        profile.join("libmps_solid.so"),
-    ]
-    .into_iter()
-    .filter(|p| p.exists())
-    .max_by_key(mtime)
-    .unwrap_or_else(|| panic!("libmps_solid.so not found next to {}", exe.display()))
 }
 
 /// Compiles the variadic logger shim once per process.
@@ -208,7 +188,7 @@ impl Log {
 
 fn api() -> &'static Api {
     static API: OnceLock<Api> = OnceLock::new();
-    API.get_or_init(|| Api::load(&library_path()))
+    API.get_or_init(|| Api::load(&common::built_library()))
 }
 
 /// Tests that count threads take this lock for writing; all others for reading.

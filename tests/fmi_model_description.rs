@@ -2,6 +2,8 @@
 //! scenes/ (regenerate with `cargo run --release --example pack_scenes -- --write-xml
 //! modelDescription scenes/*.json`), its structure follows the variable table, and pack_fmu
 //! writes a complete FMU.
+mod common;
+
 use mps_solid::fmi::model_description::guid;
 use mps_solid::fmi::pack::{documentation_html, model_description_xml, pack_fmu};
 use mps_solid::fmi::variables::{Causality, VariableTable};
@@ -166,29 +168,12 @@ fn xml_follows_the_variable_table() {
     }
 }
 
-fn built_library() -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    let deps = exe.parent().unwrap();
-    let profile = if deps.ends_with("deps") {
-        deps.parent().unwrap()
-    } else {
-        deps
-    };
-    [
-        profile.join("deps/libmps_solid.so"),
-        profile.join("libmps_solid.so"),
-    ]
-    .into_iter()
-    .find(|p| p.exists())
-    .expect("libmps_solid.so next to the test")
-}
-
 #[test]
 fn pack_writes_a_complete_fmu() {
     let scene = Scene::load(&root().join("tests/data/small3d.json")).unwrap();
     let dir = std::env::temp_dir().join(format!("mps-pack-{}", std::process::id()));
     let out = dir.join("sub/small3d.fmu");
-    pack_fmu(&scene, &built_library(), &out).unwrap();
+    pack_fmu(&scene, &common::built_library(), &out).unwrap();
     let mut z = zip::ZipArchive::new(std::fs::File::open(&out).unwrap()).unwrap();
     let mut read = |name: &str| {
         let mut s = Vec::new();

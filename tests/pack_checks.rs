@@ -1,6 +1,8 @@
 //! `mps pack` (issue 8, item 16): only the FMU library is packed, a scene that cannot be built
 //! or whose text the modelDescription.xml cannot hold is refused, the output never replaces the
 //! scene, a failed write leaves no partial .fmu, and IO errors name the path and the OS reason.
+mod common;
+
 use mps_solid::fmi::pack::{check_shared_library, pack_fmu};
 use mps_solid::Scene;
 use std::path::{Path, PathBuf};
@@ -21,27 +23,6 @@ fn small2d() -> Scene {
     Scene::load(&root().join("tests/data/small2d.json")).unwrap()
 }
 
-/// The cdylib cargo built with this test (as in tests/fmi_host.rs): the newer of
-/// target/<profile>/deps/libmps_solid.so and target/<profile>/libmps_solid.so.
-fn library() -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    let deps = exe.parent().unwrap();
-    let profile = if deps.ends_with("deps") {
-        deps.parent().unwrap()
-    } else {
-        deps
-    };
-    let mtime = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    [
-        profile.join("deps/libmps_solid.so"),
-        profile.join("libmps_solid.so"),
-    ]
-    .into_iter()
-    .filter(|p| p.exists())
-    .max_by_key(mtime)
-    .expect("libmps_solid.so next to the test")
-}
-
 /// Files of a directory (names).
 fn listing(d: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(d)
@@ -54,7 +35,7 @@ fn listing(d: &Path) -> Vec<String> {
 
 #[test]
 fn only_a_shared_library_exporting_fmi2dostep_is_packed() {
-    let lib = std::fs::read(library()).unwrap();
+    let lib = std::fs::read(common::built_library()).unwrap();
     check_shared_library(&lib, "fmi2DoStep").unwrap();
     assert!(check_shared_library(&lib, "fmi2NoSuchFunction").is_err());
     // The mps program is an ELF (a position-independent executable, ET_DYN) without the FMI API.
@@ -90,7 +71,7 @@ fn a_scene_that_cannot_be_built_is_refused_at_pack_time() {
     s.loads[0].region.min = vec![0.2, 0.0];
     s.loads[0].region.max = vec![0.2, 0.0];
     let d = scratch("build");
-    let e = pack_fmu(&s, &library(), &d.join("x.fmu")).unwrap_err();
+    let e = pack_fmu(&s, &common::built_library(), &d.join("x.fmu")).unwrap_err();
     assert!(
         e.contains("loads[0] ('tip_load').region") && e.contains("no particle"),
         "{e}"
@@ -99,11 +80,11 @@ fn a_scene_that_cannot_be_built_is_refused_at_pack_time() {
     // Control characters in a body name (set past the scene loader): refused, naming the field.
     let mut s = small2d();
     s.bodies[0].name = "st\u{1}rip".into();
-    let e = pack_fmu(&s, &library(), &d.join("x.fmu")).unwrap_err();
+    let e = pack_fmu(&s, &common::built_library(), &d.join("x.fmu")).unwrap_err();
     assert!(e.contains("bodies[0].name") && e.contains("U+0001"), "{e}");
     let mut s = small2d();
     s.description = "nul \u{0} here".into();
-    let e = pack_fmu(&s, &library(), &d.join("x.fmu")).unwrap_err();
+    let e = pack_fmu(&s, &common::built_library(), &d.join("x.fmu")).unwrap_err();
     assert!(e.contains("description") && e.contains("U+0000"), "{e}");
     assert!(listing(&d).is_empty());
     std::fs::remove_dir_all(&d).ok();
@@ -119,7 +100,7 @@ fn a_failed_write_leaves_no_partial_fmu_and_names_path_and_reason() {
         "trap '' XFSZ; ulimit -f 64; exec '{}' pack '{}' --lib '{}' --out '{}'",
         env!("CARGO_BIN_EXE_mps"),
         scene.display(),
-        library().display(),
+        common::built_library().display(),
         out.display()
     );
     let r = Command::new("sh").arg("-c").arg(&cmd).output().unwrap();
@@ -139,7 +120,7 @@ fn a_failed_write_leaves_no_partial_fmu_and_names_path_and_reason() {
     // An output that is a directory: the rename fails, with both paths and the reason.
     let dir_out = d.join("a_dir.fmu");
     std::fs::create_dir(&dir_out).unwrap();
-    let e = pack_fmu(&small2d(), &library(), &dir_out).unwrap_err();
+    let e = pack_fmu(&small2d(), &common::built_library(), &dir_out).unwrap_err();
     assert!(
         e.contains(dir_out.to_str().unwrap()) && e.contains("os error"),
         "{e}"
@@ -151,13 +132,13 @@ fn a_failed_write_leaves_no_partial_fmu_and_names_path_and_reason() {
         e.contains("none.so") && e.contains("No such file or directory"),
         "{e}"
     );
-    let e = pack_fmu(&small2d(), &library(), &out.join("x.fmu")).unwrap_err();
+    let e = pack_fmu(&small2d(), &common::built_library(), &out.join("x.fmu")).unwrap_err();
     assert!(
         e.contains("small2d.fmu") && e.contains("File exists (os error 17)"),
         "{e}"
     );
     // Success writes exactly the FMU.
-    pack_fmu(&small2d(), &library(), &out).unwrap();
+    pack_fmu(&small2d(), &common::built_library(), &out).unwrap();
     assert_eq!(&std::fs::read(&out).unwrap()[..2], b"PK");
     assert_eq!(listing(&d), vec!["a_dir.fmu", "small2d.fmu"]);
     std::fs::remove_dir_all(&d).ok();
@@ -172,7 +153,7 @@ fn the_output_is_never_the_scene() {
     for out in [scene.clone(), d.join(".").join("s.json")] {
         let r = Command::new(env!("CARGO_BIN_EXE_mps"))
             .args(["pack", scene.to_str().unwrap(), "--lib"])
-            .arg(library())
+            .arg(common::built_library())
             .arg("--out")
             .arg(&out)
             .output()
@@ -186,7 +167,7 @@ fn the_output_is_never_the_scene() {
     }
     // Nor the library.
     let lib_copy = d.join("lib.so");
-    std::fs::copy(library(), &lib_copy).unwrap();
+    std::fs::copy(common::built_library(), &lib_copy).unwrap();
     let e = pack_fmu(&small2d(), &lib_copy, &lib_copy).unwrap_err();
     assert!(e.contains("is the library itself"), "{e}");
     std::fs::remove_dir_all(&d).ok();

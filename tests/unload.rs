@@ -5,6 +5,8 @@
 //! the cycles, not other tests' threads and libraries.
 #![allow(non_snake_case)]
 
+mod common;
+
 use libloading::Library;
 use mps_solid::fmi::model_description::guid;
 use mps_solid::Scene;
@@ -55,22 +57,7 @@ fn library_path() -> PathBuf {
     if let Some(p) = std::env::var_os("MPS_UNLOAD_LIB") {
         return PathBuf::from(p);
     }
-    let exe = std::env::current_exe().unwrap();
-    let deps = exe.parent().unwrap();
-    let profile = if deps.ends_with("deps") {
-        deps.parent().unwrap()
-    } else {
-        deps
-    };
-    let mtime = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    [
-        profile.join("deps/libmps_solid.so"),
-        profile.join("libmps_solid.so"),
-    ]
-    .into_iter()
-    .filter(|p| p.exists())
-    .max_by_key(mtime)
-    .unwrap_or_else(|| panic!("libmps_solid.so not found next to {}", exe.display()))
+    common::built_library()
 }
 
 /// VmRSS of this process in kB.

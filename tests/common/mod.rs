@@ -71,3 +71,26 @@ pub const MODELS: [ElasticModel; 3] = [
     ElasticModel::Paper,
     ElasticModel::PaperLocal,
 ];
+
+/// The cdylib cargo built with this test: the newer of target/<profile>/deps/libmps_solid.so and
+/// target/<profile>/libmps_solid.so (cargo builds the library's cdylib for the package's
+/// integration tests but uplifts it to target/<profile>/ only in `cargo build`, so the copy
+/// there may be stale).
+pub fn built_library() -> std::path::PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let deps = exe.parent().unwrap();
+    let profile = if deps.ends_with("deps") {
+        deps.parent().unwrap()
+    } else {
+        deps
+    };
+    let mtime = |p: &std::path::PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    [
+        profile.join("deps/libmps_solid.so"),
+        profile.join("libmps_solid.so"),
+    ]
+    .into_iter()
+    .filter(|p| p.exists())
+    .max_by_key(mtime)
+    .unwrap_or_else(|| panic!("libmps_solid.so not found next to {}", exe.display()))
+}

@@ -72,6 +72,17 @@ def variants():
     v.append(("to 1.7 s: impact at mid-height, eps_max 0.08, fractured-surface contact off",
               dict(MID_HEIGHT, **{"solver.fracture_strain": 0.08,
                                   "solver.contact.fractured_surfaces": False, "end_time": 1.7})))
+    # The bond strain of Eq. (42) read as the relative displacement |u_ij| / |r0| (the paper's
+    # notation allows it), with and without the particles' rigid rotation taken out.
+    for m in ("relative_displacement", "rotation_corrected"):
+        for eps in (0.2, 0.3):
+            v.append((f"bond strain {m}, eps_max {eps}",
+                      {"solver.fracture_strain": eps, "solver.bond_strain": m}))
+        for fc in (True, False):
+            v.append((f"to 1.7 s: bond strain {m}, eps_max 0.2, fractured-surface contact "
+                      f"{'on' if fc else 'off'}",
+                      {"solver.fracture_strain": 0.2, "solver.bond_strain": m,
+                       "solver.contact.fractured_surfaces": fc, "end_time": 1.7}))
     return v
 
 

@@ -1,44 +1,74 @@
-//! Fracture, Eq. (42): a bond whose strain eps_ij = (|r_ij| - |r0_ij|) / |r0_ij| exceeds eps_max
-//! breaks for good (its weight w0 is set to zero in both stored directions), and both particles
+//! Fracture, Eq. (42): a bond whose strain eps_ij (by default the stretch
+//! (|r_ij| - |r0_ij|) / |r0_ij|; see [`BondStrain`]) exceeds eps_max breaks for good (its weight w0 is set to zero in both stored directions), and both particles
 //! become surface particles (Eq. (41) and section 2.5). Also: fragments as connected components
 //! over the intact bonds.
 use super::bonds::Bonds;
-use super::dim::Vect;
+use super::dim::{Dim, Space, Vect};
 #[allow(unused_imports)]
 use super::par::*;
+use super::params::BondStrain;
 use crate::par_iter_mut;
 
-/// Finds the bonds to break at the current positions and breaks them. The test compares squared
-/// lengths, |r_ij|^2 > (1 + eps_max)^2 |r0_ij|^2 with r_ij = r0_ij + (u_j - u_i) (displacements
-/// `u`), which is the same in both stored directions to the last bit (r_ji = -r_ij exactly), so both directions of a bond break in the same step
-/// whatever the thread count. `flag` is scratch (one byte per particle). Returns the particles
-/// that lost bonds (ascending) and the number of pairs broken.
+/// Whether the bond from particle `i` to `j` (reference vector `r0`) is strained beyond eps_max
+/// by the measure `m`, Eq. (42). Evaluated in one canonical direction (from the lower index),
+/// so both stored directions of a bond give the same answer to the last bit whatever the thread
+/// count, and both break in the same step. `limit2` is (1 + eps_max)^2 for the stretch and
+/// eps_max^2 otherwise.
+#[allow(clippy::too_many_arguments)]
+fn strained<const D: usize>(
+    m: BondStrain,
+    limit2: f64,
+    i: usize,
+    j: usize,
+    r0: Vect<D>,
+    u: &[Vect<D>],
+    q: &[<Space as Dim<D>>::Rotation],
+) -> bool
+where
+    Space: Dim<D>,
+{
+    let (a, b, r0) = if i < j { (i, j, r0) } else { (j, i, -r0) };
+    let du = u[b] - u[a];
+    let l02 = r0.norm_squared();
+    match m {
+        BondStrain::Stretch => (r0 + du).norm_squared() > limit2 * l02,
+        BondStrain::RelativeDisplacement => du.norm_squared() > limit2 * l02,
+        BondStrain::RotationCorrected => {
+            let half = <Space as Dim<D>>::midpoint(&q[a], &q[b]);
+            let rigid = <Space as Dim<D>>::rotate(&half, &r0) - r0;
+            (du - rigid).norm_squared() > limit2 * l02
+        }
+    }
+}
+
+/// Finds the bonds to break at the current displacements `u` (and orientations `q`, for the
+/// rotation-corrected measure) and breaks them. `flag` is scratch (one byte per particle).
+/// Returns the particles that lost bonds (ascending) and the number of pairs broken.
 pub fn break_bonds<const D: usize>(
     u: &[Vect<D>],
+    q: &[<Space as Dim<D>>::Rotation],
     bonds: &mut Bonds<D>,
     eps_max: f64,
+    measure: BondStrain,
     flag: &mut Vec<u8>,
-) -> (Vec<usize>, u64) {
+) -> (Vec<usize>, u64)
+where
+    Space: Dim<D>,
+{
     let n = u.len();
     flag.resize(n, 0);
-    let limit = (1.0 + eps_max) * (1.0 + eps_max);
+    let limit2 = match measure {
+        BondStrain::Stretch => (1.0 + eps_max) * (1.0 + eps_max),
+        _ => eps_max * eps_max,
+    };
     {
         let b = &*bonds;
         // Gather pass: each particle tests its own bonds and writes only its own flag.
         par_iter_mut!(flag[..]).enumerate().for_each(|(i, f)| {
-            let ui = u[i];
-            let mut hit = 0u8;
-            for k in b.of(i) {
-                if b.w0[k] == 0.0 {
-                    continue;
-                }
-                let r = b.r0[k] + (u[b.nbr[k] as usize] - ui);
-                if r.norm_squared() > limit * b.r0[k].norm_squared() {
-                    hit = 1;
-                    break;
-                }
-            }
-            *f = hit;
+            let hit = b.of(i).any(|k| {
+                b.w0[k] != 0.0 && strained(measure, limit2, i, b.nbr[k] as usize, b.r0[k], u, q)
+            });
+            *f = u8::from(hit);
         });
     }
     let mut touched = Vec::new();
@@ -48,14 +78,12 @@ pub fn break_bonds<const D: usize>(
             continue;
         }
         touched.push(i);
-        let ui = u[i];
         for k in bonds.of(i) {
             if bonds.w0[k] == 0.0 {
                 continue;
             }
             let j = bonds.nbr[k] as usize;
-            let r = bonds.r0[k] + (u[j] - ui);
-            if r.norm_squared() > limit * bonds.r0[k].norm_squared() {
+            if strained(measure, limit2, i, j, bonds.r0[k], u, q) {
                 bonds.w0[k] = 0.0;
                 // Each pair is counted once, from its lower index (the other direction is found
                 // from the other particle, which is flagged too: the test is symmetric).
@@ -123,4 +151,40 @@ pub fn max_bond_strain<const D: usize>(u: &[Vect<D>], bonds: &Bonds<D>) -> (f64,
         }
     }
     best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two particles 1 apart whose pair turns rigidly by `theta`, the particles' orientations
+    /// turned with it: which measures break the bond at eps_max = 0.2?
+    fn breaks(measure: BondStrain, theta: f64) -> bool {
+        let x0 = [Vect::<2>::new(0.0, 0.0), Vect::<2>::new(1.0, 0.0)];
+        let mut bonds = Bonds::build(&x0, &[0, 0], 2.1);
+        let u = [
+            Vect::<2>::zeros(),
+            Vect::<2>::new(theta.cos() - 1.0, theta.sin()),
+        ];
+        let q = [theta, theta];
+        let (touched, pairs) = break_bonds(&u, &q, &mut bonds, 0.2, measure, &mut vec![]);
+        assert_eq!(touched.len(), 2 * pairs as usize, "both ends or none");
+        pairs == 1
+    }
+
+    #[test]
+    fn bond_strain_measures_of_a_rigid_turn() {
+        // A rigid turn by 30 degrees: no stretch; a relative displacement of 2 sin(15 deg) =
+        // 0.518 of the length (> 0.2: the non-objective measure breaks it); nothing left once
+        // the particles' own rotation is taken out.
+        let t = 30f64.to_radians();
+        assert!(!breaks(BondStrain::Stretch, t));
+        assert!(breaks(BondStrain::RelativeDisplacement, t));
+        assert!(!breaks(BondStrain::RotationCorrected, t));
+        // A turn by 10 degrees (2 sin 5 deg = 0.174 < 0.2) breaks nothing.
+        assert!(!breaks(
+            BondStrain::RelativeDisplacement,
+            10f64.to_radians()
+        ));
+    }
 }

@@ -32,5 +32,5 @@ macro_rules! par_iter_mut {
 }
 
 pub use dim::{Dim, Mat, Space, Vect};
-pub use params::{ContactOptions, ElasticModel, Material, SolverOptions};
+pub use params::{BondStrain, ContactOptions, ElasticModel, Material, SolverOptions};
 pub use world::{BodyInit, SimError, World};

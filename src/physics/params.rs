@@ -80,8 +80,35 @@ pub struct SolverOptions {
     /// Critical bond strain eps_max of Eq. (42) (-): a bond whose strain
     /// (|r_ij| - |r0_ij|) / |r0_ij| exceeds it breaks for good. None: no fracture (and no checks).
     pub fracture_strain: Option<f64>,
+    /// The bond strain that Eq. (42) compares with eps_max (omitted from a scene's JSON when it
+    /// is the default, the stretch).
+    #[serde(skip_serializing_if = "BondStrain::is_stretch")]
+    pub bond_strain: BondStrain,
     /// Contact between bodies and across broken bonds (section 2.5).
     pub contact: ContactOptions,
+}
+
+/// The bond strain of Eq. (42). The paper writes the strain of bond ij with the relative
+/// displacement u_ij, which allows more than one reading; see docs/case3-study.md.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BondStrain {
+    /// (|r_ij| - |r0_ij|) / |r0_ij|: the change of the bond's length (objective).
+    #[default]
+    Stretch,
+    /// |u_j - u_i| / |r0_ij|: the norm of the relative displacement, which also counts the
+    /// bond's rigid rotation (not objective: a rigid turn by theta gives 2 sin(theta / 2)).
+    RelativeDisplacement,
+    /// |u_j - u_i - (R r0_ij - r0_ij)| / |r0_ij| with R the rotation half way between the two
+    /// particles' orientations (Eq. (16)): the relative displacement less the rigid rotation the
+    /// particles carry.
+    RotationCorrected,
+}
+
+impl BondStrain {
+    pub fn is_stretch(&self) -> bool {
+        *self == BondStrain::Stretch
+    }
 }
 
 /// Contact options (section 2.5). See docs/contact-fracture.md for the force law.
@@ -138,6 +165,7 @@ impl Default for SolverOptions {
             max_particles: DEFAULT_MAX_PARTICLES,
             max_steps: DEFAULT_MAX_STEPS,
             fracture_strain: None,
+            bond_strain: BondStrain::Stretch,
             contact: ContactOptions::default(),
         }
     }

@@ -435,8 +435,14 @@ where
             return;
         };
         self.fracture_checks += 1;
-        let (touched, pairs) =
-            super::fracture::break_bonds(&self.p.u, &mut self.bonds, eps, &mut self.frac_flag);
+        let (touched, pairs) = super::fracture::break_bonds(
+            &self.p.u,
+            &self.p.q,
+            &mut self.bonds,
+            eps,
+            self.options.bond_strain,
+            &mut self.frac_flag,
+        );
         if touched.is_empty() {
             return;
         }

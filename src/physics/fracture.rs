@@ -73,8 +73,8 @@ where
     }
     let mut touched = Vec::new();
     let mut pairs = 0u64;
-    for i in 0..n {
-        if flag[i] == 0 {
+    for (i, &hit) in flag.iter().enumerate() {
+        if hit == 0 {
             continue;
         }
         touched.push(i);

@@ -80,9 +80,8 @@ pub struct SolverOptions {
     /// Critical bond strain eps_max of Eq. (42) (-): a bond whose strain
     /// (|r_ij| - |r0_ij|) / |r0_ij| exceeds it breaks for good. None: no fracture (and no checks).
     pub fracture_strain: Option<f64>,
-    /// The bond strain that Eq. (42) compares with eps_max (omitted from a scene's JSON when it
-    /// is the default, the stretch).
-    #[serde(skip_serializing_if = "BondStrain::is_stretch")]
+    /// The bond strain that Eq. (42) compares with eps_max (default: the stretch). Always
+    /// serialised: FMU states are bincode, which cannot skip fields.
     pub bond_strain: BondStrain,
     /// Contact between bodies and across broken bonds (section 2.5).
     pub contact: ContactOptions,
@@ -103,12 +102,6 @@ pub enum BondStrain {
     /// particles' orientations (Eq. (16)): the relative displacement less the rigid rotation the
     /// particles carry.
     RotationCorrected,
-}
-
-impl BondStrain {
-    pub fn is_stretch(&self) -> bool {
-        *self == BondStrain::Stretch
-    }
 }
 
 /// Contact options (section 2.5). See docs/contact-fracture.md for the force law.

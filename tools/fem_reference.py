@@ -42,6 +42,7 @@ Any run with --quick/--levels/--line-levels/--modes writes JSON only to an expli
 """
 
 import argparse
+import functools
 import json
 import math
 import os
@@ -56,8 +57,8 @@ import scipy.sparse.linalg as spla
 from scipy.optimize import brentq, minimize_scalar
 
 import skfem
-from skfem import (Basis, BilinearForm, ElementHex2, ElementVector, LinearForm,
-                   MeshHex, asm)
+from skfem import (Basis, BilinearForm, ElementHex2, ElementQuad2, ElementVector,
+                   LinearForm, MeshHex, MeshQuad, asm)
 from skfem.helpers import dot
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
@@ -95,17 +96,147 @@ def sig(x, n=7):
 
 
 # ---------------------------------------------------------------- assembly
+# Generic part (also used by tools/fem_bending.py): linear elasticity with
+# consistent mass and a body force -rho g along the last axis (z in 3D, y in
+# 2D plane strain) on a tensor mesh of triquadratic Hex27 / biquadratic Quad9
+# elements.  Every element is a box, so the element matrices are computed by
+# scikit-fem on a one-element mesh, once per distinct box size, and scattered.
 LAM, MU = lame_parameters(E, NU)
 
 
-@BilinearForm
-def _mass(u, v, w):
-    return RHO * dot(u, v)
+def tensor_mesh(coords):
+    """MeshHex (3 coordinate arrays) or MeshQuad (2) of the tensor grid."""
+    return (MeshHex if len(coords) == 3 else MeshQuad).init_tensor(*coords)
 
 
-@LinearForm
-def _gravity(v, w):
-    return -RHO * G_ACC * v[2]
+def vector_element(dim):
+    return ElementVector(ElementHex2() if dim == 3 else ElementQuad2())
+
+
+def forms(lam, mu, rho, g, dim):
+    @BilinearForm
+    def mass(u, v, w):
+        return rho * dot(u, v)
+
+    @LinearForm
+    def gravity(v, w):
+        return -rho * g * v[dim - 1]
+
+    return linear_elasticity(lam, mu), mass, gravity
+
+
+@functools.lru_cache(maxsize=None)
+def _unit_box_matrices(dim, lam, mu, rho, g, volumetric="full"):
+    """Matrices on the unit box, split by the derivative directions (p of the trial,
+    q of the test function): sum_pq form_pq = lam div u div v + 2 mu eps(u):eps(v).
+    On a box with edges h the stiffness is sum_pq V / (h_p h_q) K_pq, V = prod h.
+
+    volumetric="p1disc": the lam term uses the element-wise L2 projection of
+    div u onto P1 = {1, x, y(, z)} (the displacement form of the mixed Q2-P1disc
+    element with the pressure condensed per element; inf-sup stable, free of
+    volumetric locking as nu -> 1/2)."""
+    b1 = Basis(tensor_mesh([np.array([0.0, 1.0])] * dim), vector_element(dim),
+               intorder=INTORDER)
+    ed1 = b1.element_dofs[:, 0]
+    lam_full = lam if volumetric == "full" else 0.0
+
+    def part(p, q):
+        @BilinearForm
+        def form(u, v, w):
+            out = (lam_full * u.grad[p, p] * v.grad[q, q]
+                   + mu * u.grad[q, p] * v.grad[p, q])
+            if p == q:
+                out = out + mu * sum(u.grad[a, p] * v.grad[a, p] for a in range(dim))
+            return out
+        return asm(form, b1).toarray()[np.ix_(ed1, ed1)]
+
+    kpq = {(p, q): part(p, q) for p in range(dim) for q in range(dim)}
+    if volumetric == "p1disc":
+        xq = b1.global_coordinates().value[:, 0, :]          # dim x nqp
+        wq = b1.dx[0]
+        qq = np.vstack([np.ones_like(wq)] + [xq[a] - 0.5 for a in range(dim)])
+        Gi = np.linalg.inv((qq * wq) @ qq.T)
+        # Bp[k, j] = int q_k d(phi_j)_p / dx_p   (local DOF order j)
+        Bp = [np.array([(qq * wq) @ b1.basis[j][0].grad[p, p, 0] for j in range(b1.Nbfun)]).T
+              for p in range(dim)]
+        for (p, q) in kpq:
+            kpq[p, q] = kpq[p, q] + lam * Bp[q].T @ Gi @ Bp[p]
+    elif volumetric != "full":
+        raise ValueError(volumetric)
+    _, mf, ff = forms(lam, mu, rho, g, dim)
+    return kpq, asm(mf, b1).toarray()[np.ix_(ed1, ed1)], asm(ff, b1)[ed1]
+
+
+def element_matrices(h, lam=LAM, mu=MU, rho=RHO, g=G_ACC, scaled=False, volumetric="full"):
+    """Stiffness, mass and body-force vector of one box element with edges h.
+    Direct: scikit-fem on a one-element mesh of that box.  scaled: from the
+    unit-box parts (cheap for graded meshes with many distinct boxes; equal to
+    the direct matrices to round-off, checked by assemble_tensor(check=True)).
+    volumetric: see _unit_box_matrices (anything but "full" implies scaled)."""
+    dim = len(h)
+    if scaled or volumetric != "full":
+        kpq, m1, f1 = _unit_box_matrices(dim, float(lam), float(mu), float(rho), float(g),
+                                         volumetric)
+        vol = float(np.prod(h))
+        ke = sum(vol / (h[p] * h[q]) * k for (p, q), k in kpq.items())
+        return ke, vol * m1, vol * f1
+    b1 = Basis(tensor_mesh([np.array([0.0, hi]) for hi in h]), vector_element(dim),
+               intorder=INTORDER)
+    ed1 = b1.element_dofs[:, 0]
+    kf, mf, ff = forms(lam, mu, rho, g, dim)
+    ke = asm(kf, b1).toarray()[np.ix_(ed1, ed1)]
+    me = asm(mf, b1).toarray()[np.ix_(ed1, ed1)]
+    fe = asm(ff, b1)[ed1]
+    return ke, me, fe
+
+
+def assemble_tensor(coords, lam, mu, rho, g, check=False, scaled=False, volumetric="full",
+                    box=None):
+    """Mesh, basis, K, M, f on the tensor mesh of `coords` (2 or 3 node-coordinate
+    arrays, possibly graded).  check: compare with scikit-fem's own global assembly
+    (volumetric="full" only); scaled, volumetric: see element_matrices; box: the
+    exact element edges of a uniform mesh (default: from the node coordinates)."""
+    dim = len(coords)
+    mesh = tensor_mesh(coords)
+    basis = Basis(mesh, vector_element(dim), intorder=INTORDER)
+    pe = mesh.p[:, mesh.t]                                   # dim x verts x ne
+    hs = pe.max(axis=1) - pe.min(axis=1)                    # box edges per element
+    _, first, gid = np.unique(np.round(hs.T, 12), axis=0, return_index=True,
+                              return_inverse=True)
+    if box is not None:
+        if len(first) != 1 or np.abs(hs[:, 0] - np.asarray(box)).max() > 1e-12:
+            raise ValueError("box given for a mesh that is not uniform with those edges")
+        mats = [element_matrices(tuple(box), lam, mu, rho, g, scaled, volumetric)]
+    else:
+        mats = [element_matrices(tuple(hs[:, e]), lam, mu, rho, g, scaled, volumetric)
+                for e in first]
+    gid = gid.ravel()
+    ed = basis.element_dofs
+    n, ne = ed.shape
+    rows = np.broadcast_to(ed[:, None, :], (n, n, ne)).ravel()
+    cols = np.broadcast_to(ed[None, :, :], (n, n, ne)).ravel()
+    N = basis.N
+
+    def values(j):
+        if len(mats) == 1:
+            return np.broadcast_to(mats[0][j][..., None], mats[0][j].shape + (ne,))
+        return np.moveaxis(np.stack([m[j] for m in mats])[gid], 0, -1)
+
+    K = sp.coo_matrix((values(0).ravel(), (rows, cols)), shape=(N, N)).tocsr()
+    M = sp.coo_matrix((values(1).ravel(), (rows, cols)), shape=(N, N)).tocsr()
+    f = np.bincount(ed.ravel(), weights=values(2).ravel(), minlength=N)
+    if check and volumetric == "full":
+        kf, mf, ff = forms(lam, mu, rho, g, dim)
+        K2, M2, f2 = asm(kf, basis), asm(mf, basis), asm(ff, basis)
+        ek = abs(K - K2).max() / abs(K2).max()
+        em = abs(M - M2).max() / abs(M2).max()
+        ef = np.abs(f - f2).max() / np.abs(f2).max()
+        if max(ek, em, ef) > 1e-12:
+            raise RuntimeError(f"fast assembly mismatch: K {ek:.1e} M {em:.1e} f {ef:.1e}")
+        # total weight must be exact
+        vol = np.prod([c[-1] - c[0] for c in coords])
+        assert abs(f.sum() + rho * g * vol) < 1e-9 * rho * g * vol
+    return mesh, basis, K, M, f
 
 
 def mesh_sizes(ny):
@@ -113,51 +244,10 @@ def mesh_sizes(ny):
     return nx, ny, ny
 
 
-def build_mesh(ny):
+def build_coords(ny):
     nx, ny_, nz = mesh_sizes(ny)
-    return MeshHex.init_tensor(np.linspace(0.0, L, nx + 1),
-                               np.linspace(-B / 2, B / 2, ny_ + 1),
-                               np.linspace(-B / 2, B / 2, nz + 1)), (nx, ny_, nz)
-
-
-def element_matrices(hx, hy, hz):
-    m1 = MeshHex.init_tensor(np.array([0.0, hx]), np.array([0.0, hy]),
-                             np.array([0.0, hz]))
-    b1 = Basis(m1, ElementVector(ElementHex2()), intorder=INTORDER)
-    ed1 = b1.element_dofs[:, 0]
-    ke = asm(linear_elasticity(LAM, MU), b1).toarray()[np.ix_(ed1, ed1)]
-    me = asm(_mass, b1).toarray()[np.ix_(ed1, ed1)]
-    fe = asm(_gravity, b1)[ed1]
-    return ke, me, fe
-
-
-def assemble(mesh, shape, check=False):
-    nx, ny, nz = shape
-    basis = Basis(mesh, ElementVector(ElementHex2()), intorder=INTORDER)
-    ke, me, fe = element_matrices(L / nx, B / ny, B / nz)
-    ed = basis.element_dofs
-    n, ne = ed.shape
-    rows = np.broadcast_to(ed[:, None, :], (n, n, ne)).ravel()
-    cols = np.broadcast_to(ed[None, :, :], (n, n, ne)).ravel()
-    N = basis.N
-    K = sp.coo_matrix((np.broadcast_to(ke[:, :, None], (n, n, ne)).ravel(),
-                       (rows, cols)), shape=(N, N)).tocsr()
-    M = sp.coo_matrix((np.broadcast_to(me[:, :, None], (n, n, ne)).ravel(),
-                       (rows, cols)), shape=(N, N)).tocsr()
-    f = np.bincount(ed.ravel(), weights=np.broadcast_to(fe[:, None], (n, ne)).ravel(),
-                    minlength=N)
-    if check:
-        K2 = asm(linear_elasticity(LAM, MU), basis)
-        M2 = asm(_mass, basis)
-        f2 = asm(_gravity, basis)
-        ek = abs(K - K2).max() / abs(K2).max()
-        em = abs(M - M2).max() / abs(M2).max()
-        ef = np.abs(f - f2).max() / np.abs(f2).max()
-        if max(ek, em, ef) > 1e-12:
-            raise RuntimeError(f"fast assembly mismatch: K {ek:.1e} M {em:.1e} f {ef:.1e}")
-        # total weight must be exact
-        assert abs(f.sum() + RHO * G_ACC * L * A) < 1e-9 * RHO * G_ACC * L * A
-    return basis, K, M, f
+    return [np.linspace(0.0, L, nx + 1), np.linspace(-B / 2, B / 2, ny_ + 1),
+            np.linspace(-B / 2, B / 2, nz + 1)], (nx, ny_, nz)
 
 
 def constrained_dofs(basis, support):
@@ -180,6 +270,69 @@ def constrained_dofs(basis, support):
 
 
 # ---------------------------------------------------------------- analysis
+def tidy_modes(w2, V, Mc, cf, xyz, fc, us):
+    """M-orthonormalise the eigenvectors V (in place, w2 ascending), classify them.
+
+    Inside a degenerate cluster (y/z bending of a square section) the basis is
+    rotated so that the mode with the most u_z (last-component) content comes
+    first and is pure.  Sign convention: phi^T f >= 0 (f the gravity load);
+    if that is ~0, the largest |component| is positive.  cf: component (0..dim-1)
+    of each free DOF, xyz: DOF locations.  Returns (modes, V, pf = V^T f)."""
+    dim = int(cf.max()) + 1
+    # component mass matrices (M couples only like components)
+    Mcomp = []
+    for c in range(dim):
+        d = (cf == c).astype(float)
+        Mcomp.append(sp.diags(d) @ Mc @ sp.diags(d))
+    if dim == 3:
+        r_rot = np.where(cf == 1, -xyz[2], 0.0) + np.where(cf == 2, xyz[1], 0.0)
+        J_rot = r_rot @ (Mc @ r_rot)
+
+    # M-orthonormalise and, inside degenerate clusters, rotate to pure u_z content
+    i = 0
+    while i < len(w2):
+        j = i + 1
+        while j < len(w2) and abs(w2[j] - w2[i]) <= 1e-6 * w2[i]:
+            j += 1
+        if j - i > 1:
+            Vc = V[:, i:j]
+            Q = Vc.T @ (Mc @ Vc)
+            Lc = np.linalg.cholesky(Q)
+            Vc = np.linalg.solve(Lc, Vc.T).T
+            Qz = Vc.T @ (Mcomp[-1] @ Vc)
+            ev, R = np.linalg.eigh(Qz)
+            V[:, i:j] = Vc @ R[:, ::-1]       # most u_z first
+            w2[i:j] = w2[i:j].mean()
+        i = j
+    nrm = np.sqrt(np.einsum("ij,ij->j", V, Mc @ V))
+    V = V / nrm
+    # sign convention: phi^T f >= 0; if ~0, largest |component| positive
+    pf = V.T @ fc
+    for k in range(V.shape[1]):
+        s = pf[k]
+        if abs(s) < 1e-9 * np.abs(pf).max():
+            s = V[np.argmax(np.abs(V[:, k])), k]
+        if s < 0:
+            V[:, k] *= -1
+            pf[k] *= -1
+
+    modes = []
+    counts = {}
+    for k in range(V.shape[1]):
+        fr = [float(V[:, k] @ (Mcomp[c] @ V[:, k])) for c in range(dim)]
+        rot = float((V[:, k] @ (Mc @ r_rot)) ** 2 / J_rot) if dim == 3 else 0.0
+        kind = classify(fr + [0.0] * (3 - dim), rot)
+        counts[kind] = counts.get(kind, 0) + 1
+        modes.append({
+            "f_hz": math.sqrt(max(w2[k], 0.0)) / (2 * math.pi),
+            "type": f"{kind} {counts[kind]}",
+            "ke_fraction_xyz": fr,
+            "torsion_participation": rot,
+            "z_load_participation": float(pf[k] ** 2 / w2[k] / (us @ fc)),
+        })
+    return modes, V, pf
+
+
 def classify(fr, rot):
     fx, fy, fz = fr
     if fz > 0.6:
@@ -195,8 +348,10 @@ def classify(fr, rot):
 
 def solve_mesh(ny, support, nmodes, check=False, log=print):
     t0 = time.time()
-    mesh, shape = build_mesh(ny)
-    basis, K, M, f = assemble(mesh, shape, check=check)
+    coords, shape = build_coords(ny)
+    nx, nyy, nz = shape
+    mesh, basis, K, M, f = assemble_tensor(coords, LAM, MU, RHO, G_ACC, check=check,
+                                           box=(L / nx, B / nyy, B / nz))
     D, comp = constrained_dofs(basis, support)
     free = np.setdiff1d(np.arange(basis.N), D)
     Kc = K[free][:, free].tocsc()
@@ -221,57 +376,7 @@ def solve_mesh(ny, support, nmodes, check=False, log=print):
     w2, V = w2[order], V[:, order]
     t_eig = time.time() - t0
 
-    # component mass matrices (M couples only like components)
-    Mcomp = []
-    for c in range(3):
-        d = (cf == c).astype(float)
-        Mcomp.append(sp.diags(d) @ Mc @ sp.diags(d))
-    yz = basis.doflocs[:, free]
-    r_rot = np.where(cf == 1, -yz[2], 0.0) + np.where(cf == 2, yz[1], 0.0)
-    J_rot = r_rot @ (Mc @ r_rot)
-
-    # M-orthonormalise and, inside degenerate clusters, rotate to pure u_z content
-    i = 0
-    while i < len(w2):
-        j = i + 1
-        while j < len(w2) and abs(w2[j] - w2[i]) <= 1e-6 * w2[i]:
-            j += 1
-        if j - i > 1:
-            Vc = V[:, i:j]
-            Q = Vc.T @ (Mc @ Vc)
-            Lc = np.linalg.cholesky(Q)
-            Vc = np.linalg.solve(Lc, Vc.T).T
-            Qz = Vc.T @ (Mcomp[2] @ Vc)
-            ev, R = np.linalg.eigh(Qz)
-            V[:, i:j] = Vc @ R[:, ::-1]       # most u_z first
-            w2[i:j] = w2[i:j].mean()
-        i = j
-    nrm = np.sqrt(np.einsum("ij,ij->j", V, Mc @ V))
-    V = V / nrm
-    # sign convention: phi^T f >= 0; if ~0, largest |component| positive
-    pf = V.T @ fc
-    for k in range(V.shape[1]):
-        s = pf[k]
-        if abs(s) < 1e-9 * np.abs(pf).max():
-            s = V[np.argmax(np.abs(V[:, k])), k]
-        if s < 0:
-            V[:, k] *= -1
-            pf[k] *= -1
-
-    modes = []
-    counts = {}
-    for k in range(V.shape[1]):
-        fr = [float(V[:, k] @ (Mcomp[c] @ V[:, k])) for c in range(3)]
-        rot = float((V[:, k] @ (Mc @ r_rot)) ** 2 / J_rot)
-        kind = classify(fr, rot)
-        counts[kind] = counts.get(kind, 0) + 1
-        modes.append({
-            "f_hz": math.sqrt(max(w2[k], 0.0)) / (2 * math.pi),
-            "type": f"{kind} {counts[kind]}",
-            "ke_fraction_xyz": fr,
-            "torsion_participation": rot,
-            "z_load_participation": float(pf[k] ** 2 / w2[k] / (us @ fc)),
-        })
+    modes, V, pf = tidy_modes(w2, V, Mc, cf, basis.doflocs[:, free], fc, us)
     iz = next((k for k, md in enumerate(modes) if md["type"].startswith("bending-z")), None)
     if iz is None:
         raise RuntimeError("no z-bending mode among the computed modes")

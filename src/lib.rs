@@ -6,9 +6,11 @@
 //! type), then the command line and `fmi`.
 pub mod analysis;
 pub mod bench;
+pub mod bending;
 pub mod case3;
 pub mod cases;
 pub mod fmi;
+pub mod linear;
 pub mod output;
 pub mod physics;
 pub mod report;

@@ -24,6 +24,7 @@ struct Cli {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum Model {
+    SecondOrder,
     Corrected,
     Paper,
     PaperLocal,
@@ -32,6 +33,7 @@ enum Model {
 impl From<Model> for ElasticModel {
     fn from(m: Model) -> Self {
         match m {
+            Model::SecondOrder => ElasticModel::SecondOrder,
             Model::Corrected => ElasticModel::Corrected,
             Model::Paper => ElasticModel::Paper,
             Model::PaperLocal => ElasticModel::PaperLocal,

@@ -7,6 +7,7 @@ use super::dim::{Dim, Mat, Space, Vect};
 use super::par::*;
 use super::params::{ElasticModel, Material};
 use super::particles::Particles;
+use super::second_order::{SecondOrder, SecondOrderScratch};
 use crate::par_iter_mut;
 
 /// Precomputed constants of the elastic operator.
@@ -34,6 +35,10 @@ pub struct ElasticOperator<const D: usize> {
     /// instead of concentrating its whole volume's stiffness on them (which would make it
     /// far stiffer than the stable step allows).
     pub vol: Vec<f64>,
+    /// Particle spacing l0 (m).
+    pub l0: f64,
+    /// Second-order model: its bond weights (empty for the other models).
+    pub second: SecondOrder<D>,
 }
 
 /// Scratch arrays of the two passes.
@@ -45,6 +50,8 @@ pub struct ElasticScratch<const D: usize> {
     pub bmat: Vec<Mat<D>>,
     /// Paper: pressure p_i, Eq. (29) (Pa).
     pub pressure: Vec<f64>,
+    /// Second-order model: gradients, Hessians and their conjugates.
+    pub second: SecondOrderScratch<D>,
 }
 
 impl<const D: usize> ElasticOperator<D>
@@ -54,11 +61,13 @@ where
     pub fn new(
         model: ElasticModel,
         l0: f64,
+        re_factor: f64,
         n0: f64,
         stabilisation: f64,
         materials: &[Material],
         bonds: &Bonds<D>,
         n_particles: usize,
+        rigid: &[bool],
     ) -> Self {
         let mut op = ElasticOperator {
             model,
@@ -69,10 +78,16 @@ where
             k_inv: Vec::new(),
             span: Vec::new(),
             vol: vec![l0.powi(D as i32); n_particles],
+            l0,
+            second: SecondOrder::default(),
         };
-        (op.k_inv, op.span) = (0..n_particles)
-            .map(|i| op.shape_inverse_span(bonds, i))
-            .unzip();
+        if model == ElasticModel::SecondOrder {
+            op.second = SecondOrder::new(bonds, l0, re_factor, n_particles, rigid);
+        } else {
+            (op.k_inv, op.span) = (0..n_particles)
+                .map(|i| op.shape_inverse_span(bonds, i))
+                .unzip();
+        }
         op
     }
 
@@ -93,9 +108,13 @@ where
     /// Refreshes the operator of particle i after some of its bonds broke, Eq. (42): K_i^-1,
     /// the span projector and the stress volume l0^d n_i / n_i(reference).
     pub fn refresh_particle(&mut self, bonds: &Bonds<D>, i: usize, n_ref: f64) {
-        let (k_inv, span) = self.shape_inverse_span(bonds, i);
-        self.k_inv[i] = k_inv;
-        self.span[i] = span;
+        if self.model == ElasticModel::SecondOrder {
+            self.second.refresh(bonds, self.l0, i);
+        } else {
+            let (k_inv, span) = self.shape_inverse_span(bonds, i);
+            self.k_inv[i] = k_inv;
+            self.span[i] = span;
+        }
         let n_now: f64 = bonds.of(i).map(|b| bonds.w0[b]).sum();
         self.vol[i] = if n_ref > 0.0 && n_now < n_ref {
             self.volume * n_now / n_ref
@@ -127,6 +146,21 @@ where
     ) {
         match self.model {
             ElasticModel::Corrected => self.corrected_forces(p, bonds, s, force, torque),
+            ElasticModel::SecondOrder => {
+                self.second.forces(
+                    p,
+                    bonds,
+                    &self.lame,
+                    &self.vol,
+                    self.volume,
+                    self.l0,
+                    &mut s.second,
+                    force,
+                );
+                torque
+                    .iter_mut()
+                    .for_each(|t| *t = <Space as Dim<D>>::ang_zero());
+            }
             ElasticModel::Paper | ElasticModel::PaperLocal => {
                 self.paper_forces(p, bonds, s, force, torque)
             }
@@ -274,6 +308,17 @@ where
 
     /// Elastic strain energy of the current state (J); evaluated for output, not in the step.
     pub fn strain_energy(&self, p: &Particles<D>, bonds: &Bonds<D>, s: &ElasticScratch<D>) -> f64 {
+        if self.model == ElasticModel::SecondOrder {
+            return self.second.strain_energy(
+                p,
+                bonds,
+                &self.lame,
+                &self.vol,
+                self.volume,
+                self.l0,
+                &s.second,
+            );
+        }
         let v = self.volume;
         let d = D as f64;
         let mut total = 0.0;
@@ -281,6 +326,7 @@ where
             let (mu, lambda) = self.lame[p.body[i] as usize];
             let ui = p.u[i];
             match self.model {
+                ElasticModel::SecondOrder => unreachable!("handled above"),
                 ElasticModel::Corrected => {
                     let f = s.defgrad.get(i).copied().unwrap_or_else(Mat::<D>::identity);
                     let e = (f.transpose() * f - self.span[i]) * 0.5;

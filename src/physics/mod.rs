@@ -10,6 +10,7 @@ pub mod grid;
 pub mod integrate;
 pub mod params;
 pub mod particles;
+pub mod second_order;
 pub mod world;
 
 /// Brings rayon's parallel-iterator traits into scope when the `parallel` feature is on.

@@ -41,8 +41,14 @@ impl Material {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum ElasticModel {
+    /// Quadratic-consistent gradients and Hessians, the strain energy integrated over each
+    /// particle's cell to second order, and a stabilisation of the motion no quadratic field
+    /// explains with the shear modulus as its stiffness: exact for every quadratic displacement
+    /// field (pure bending), no tuned factor. See src/physics/second_order.rs, docs/model.md.
+    SecondOrder,
     /// Per-particle corrected operators (exact for linear displacement fields), forces from the
-    /// strain energy, plus a bond-level stabilisation of the non-affine part. See docs/model.md.
+    /// strain energy, plus a bond-level stabilisation of the non-affine part whose stiffness is
+    /// the factor `stabilisation`. See docs/model.md.
     #[default]
     Corrected,
     /// The paper's Eqs. (13)-(36): normal and shear springs with per-particle rotations and a

@@ -239,15 +239,6 @@ where
             .collect();
         let n0 = lattice_number_density::<D>(l0, re);
         let materials: Vec<Material> = bodies.iter().map(|b| b.material).collect();
-        let op = ElasticOperator::new(
-            options.model,
-            l0,
-            n0,
-            options.stabilisation,
-            &materials,
-            &bonds,
-            n,
-        );
         let mut group_of = vec![u32::MAX; n];
         let mut gs = Vec::new();
         for (gi, g) in groups.into_iter().enumerate() {
@@ -278,6 +269,21 @@ where
                 reaction: Vect::<D>::zeros(),
             });
         }
+        // Particles of clamped groups (all axes held): the second-order operator treats them as a
+        // rigid grip.
+        let all_axes: u8 = FIX_AXIS.iter().take(D).fold(0, |a, b| a | b);
+        let rigid: Vec<bool> = p.fix.iter().map(|f| f & all_axes == all_axes).collect();
+        let op = ElasticOperator::new(
+            options.model,
+            l0,
+            options.re_factor,
+            n0,
+            options.stabilisation,
+            &materials,
+            &bonds,
+            n,
+            &rigid,
+        );
         let mut load_of = vec![u32::MAX; n];
         let mut ls = Vec::new();
         for (li, (name, members)) in loads.into_iter().enumerate() {
@@ -683,18 +689,33 @@ where
         self.interpolate_at(i, point, |j| self.p.v[j])
     }
 
-    /// A particle field f at a reference point near particle i: f_i plus the corrected gradient
-    /// of f at i (the operator's K^-1) times the offset from i's reference position.
+    /// A particle field f at a reference point near particle i: f_i plus the operator's gradient
+    /// of f at i times the offset from i's reference position (and, for the second-order
+    /// operator, half its Hessian times the offset squared: exact for quadratic fields).
     fn interpolate_at(&self, i: usize, point: &Vect<D>, f: impl Fn(usize) -> Vect<D>) -> Vect<D> {
         let fi = f(i);
+        let d = point - self.p.x0[i];
         let mut g = super::dim::Mat::<D>::zeros();
+        if self.op.model == super::params::ElasticModel::SecondOrder {
+            let so = &self.op.second;
+            let mut q = Vect::<D>::zeros();
+            for b in self.bonds.of(i) {
+                if self.bonds.w0[b] == 0.0 {
+                    continue;
+                }
+                let df = f(self.bonds.nbr[b] as usize) - fi;
+                g += df * so.g[b].transpose();
+                q += df * d.dot(&(so.h[b] * d));
+            }
+            return fi + g * d + q * 0.5;
+        }
         for b in self.bonds.of(i) {
             let r0 = self.bonds.r0[b];
             let om = self.bonds.w0[b] / r0.norm_squared();
             let df = f(self.bonds.nbr[b] as usize) - fi;
             g += (df * om) * r0.transpose();
         }
-        fi + g * self.op.k_inv[i] * (point - self.p.x0[i])
+        fi + g * self.op.k_inv[i] * d
     }
 
     /// Mean displacement (m) and mean velocity (m/s) of the particles of load region r: the
@@ -814,7 +835,10 @@ where
         let mut scratch = ElasticScratch::default();
         let mut f = vec![Vect::<D>::zeros(); n];
         let mut t = vec![<Space as Dim<D>>::ang_zero(); n];
-        let rotational = self.op.model != super::params::ElasticModel::Corrected;
+        let rotational = matches!(
+            self.op.model,
+            super::params::ElasticModel::Paper | super::params::ElasticModel::PaperLocal
+        );
         // Deterministic pseudo-random start vector that moves with the body: per particle a
         // pseudo-random combination of its bond directions (coefficients hashed from the pair
         // indices), so a translated or rotated scene starts from the translated or rotated

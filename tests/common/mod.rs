@@ -66,7 +66,8 @@ impl Rng {
     }
 }
 
-pub const MODELS: [ElasticModel; 3] = [
+pub const MODELS: [ElasticModel; 4] = [
+    ElasticModel::SecondOrder,
     ElasticModel::Corrected,
     ElasticModel::Paper,
     ElasticModel::PaperLocal,

@@ -1,0 +1,146 @@
+//! Accuracy study of the elastic operators in bending (issue 7): linearised first frequency and
+//! static tip deflection of the 2D GMS plate and the slender 3D cantilever against n particles
+//! through the thickness. `cargo run --release --example bending_study -- [2d|3d] [n...]`
+use mps_solid::bending::{cantilever3d_scene, linear_bending, plate2d_scene};
+use mps_solid::physics::ElasticModel;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let dim = args.first().map(|s| s.as_str()).unwrap_or("2d").to_string();
+    let ns: Vec<usize> = args.iter().skip(1).filter_map(|s| s.parse().ok()).collect();
+    let ns = if ns.is_empty() { vec![4, 8, 16] } else { ns };
+    let models: Vec<(&str, ElasticModel, f64)> = vec![
+        ("second_order", ElasticModel::SecondOrder, 0.5),
+        ("corrected 0.5", ElasticModel::Corrected, 0.5),
+        ("corrected 0.25", ElasticModel::Corrected, 0.25),
+        ("corrected 1.0", ElasticModel::Corrected, 1.0),
+    ];
+    if std::env::var("TIME").is_ok() {
+        time_forces(ns[0]);
+        return;
+    }
+    if std::env::var("FREE").is_ok() {
+        for &n in &ns {
+            for (name, model) in [
+                ("second_order", ElasticModel::SecondOrder),
+                ("corrected", ElasticModel::Corrected),
+            ] {
+                println!(
+                    "free-free plate {name} n = {n}: f1 = {:.6} Hz",
+                    free_free(n, model)
+                );
+            }
+        }
+        return;
+    }
+    let only = std::env::var("MODELS").ok();
+    let models: Vec<_> = models
+        .into_iter()
+        .filter(|(n, _, _)| {
+            only.as_ref()
+                .is_none_or(|o| o.split(',').any(|x| n.starts_with(x)))
+        })
+        .collect();
+    println!("| model | n | particles | f1 (Hz) | tip static (m) | products | wall (s) |");
+    println!("|---|---|---|---|---|---|---|");
+    for (name, model, stab) in &models {
+        for &n in &ns {
+            let mut s = if dim == "3d" {
+                cantilever3d_scene(n, *model)
+            } else {
+                plate2d_scene(n, *model)
+            };
+            s.solver.stabilisation = *stab;
+            if let Ok(nu) = std::env::var("NU") {
+                s.bodies[0].material.poisson = nu.parse().unwrap();
+            }
+            match linear_bending(&s) {
+                Ok(r) => println!(
+                    "| {name} | {n} | {} | {:.5} | {:.6e} | {} | {:.2} |",
+                    r.particles, r.f1, r.tip, r.products, r.wall
+                ),
+                Err(e) => println!("| {name} | {n} | error: {e} |"),
+            }
+        }
+    }
+}
+
+/// Free-free plate (no clamp, no singular corner): first flexural frequency, by shifted inverse
+/// iteration with the rigid motions projected out. `FREE=1` runs it instead of the study.
+#[allow(dead_code)]
+pub fn free_free(n: usize, model: ElasticModel) -> f64 {
+    use mps_solid::linear::Linearised;
+    use mps_solid::physics::Vect;
+    use mps_solid::scene::Model;
+    let mut s = plate2d_scene(n, model);
+    s.boundaries.clear();
+    s.bodies[0].boxes.truncate(1);
+    s.probes[0].point = vec![0.1, 0.0];
+    let model = Model::<2>::build(&s).unwrap();
+    let w = &model.world;
+    let np = w.len();
+    let m = &w.p.mass;
+    let c: Vect<2> = w.p.x0.iter().sum::<Vect<2>>() / np as f64;
+    let mut rig: Vec<Vec<Vect<2>>> = vec![
+        vec![Vect::<2>::new(1.0, 0.0); np],
+        vec![Vect::<2>::new(0.0, 1.0); np],
+        w.p.x0
+            .iter()
+            .map(|x| Vect::<2>::new(-(x[1] - c[1]), x[0] - c[0]))
+            .collect(),
+    ];
+    for k in 0..rig.len() {
+        for l in 0..k {
+            let d: f64 = (0..np).map(|i| m[i] * rig[k][i].dot(&rig[l][i])).sum();
+            for i in 0..np {
+                let t = rig[l][i] * d;
+                rig[k][i] -= t;
+            }
+        }
+        let nn: f64 = (0..np)
+            .map(|i| m[i] * rig[k][i].norm_squared())
+            .sum::<f64>()
+            .sqrt();
+        rig[k].iter_mut().for_each(|v| *v /= nn);
+    }
+    let mut lin = Linearised::new(w).unwrap();
+    lin.shift = (2.0 * std::f64::consts::PI * 5.0f64).powi(2);
+    lin.deflate = rig;
+    // Start: a bending-like shape.
+    let start: Vec<Vect<2>> =
+        w.p.x0
+            .iter()
+            .map(|x| Vect::<2>::new(0.0, ((x[0] - c[0]) / 0.1).powi(2) - 0.33))
+            .collect();
+    let (w1, _) = lin.lowest_mode(&start, 1e-11).unwrap();
+    w1 / (2.0 * std::f64::consts::PI)
+}
+
+/// Cost of one force evaluation per model (TIME=1): cantilever3d with n across.
+#[allow(dead_code)]
+pub fn time_forces(n: usize) {
+    use mps_solid::scene::Model;
+    for model in [
+        ElasticModel::SecondOrder,
+        ElasticModel::Corrected,
+        ElasticModel::Paper,
+    ] {
+        let s = cantilever3d_scene(n, model);
+        let mut m = Model::<3>::build(&s).unwrap();
+        let bonds = m.world.bonds.len();
+        let dt = m.world.max_dt();
+        let t0 = std::time::Instant::now();
+        let steps = 200;
+        for _ in 0..steps {
+            m.world.step(dt).unwrap();
+        }
+        let el = t0.elapsed().as_secs_f64();
+        println!(
+            "{model:?}: {} particles, {bonds} bonds, {:.3} ms/step, {:.3e} bond-evaluations/s, critical dt {:.3e} s",
+            m.world.len(),
+            el / steps as f64 * 1e3,
+            bonds as f64 * steps as f64 / el,
+            m.world.critical_dt()
+        );
+    }
+}

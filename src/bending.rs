@@ -1,0 +1,211 @@
+//! Bending benchmarks of issue 7 as scene builders with their references: the slender 3D
+//! cantilever (L/h = 10) and the 2D oscillating plate of Gray, Monaghan & Swift (2001) in plane
+//! strain, each with n particles through the thickness on one uniform lattice (the clamp is
+//! `ceil(re/l0)` wall layers behind the clamped face x = 0), and their linearised first
+//! frequency and static tip deflection (src/linear.rs) for the accuracy study.
+use crate::linear::{field_at, Linearised};
+use crate::physics::{ElasticModel, Material, SolverOptions, Vect};
+use crate::scene::Model;
+use crate::scene::{Body, Boundary, BoundaryKind, Gravity, Probe, Region, Scene, SceneError};
+
+/// The slender cantilever: rho 1000 kg/m^3, E 100 MPa, nu 0.3.
+pub const CANTILEVER_MATERIAL: Material = Material {
+    density: 1000.0,
+    young: 1.0e8,
+    poisson: 0.3,
+};
+/// Cantilever length and section side (m).
+pub const CANTILEVER_LENGTH: f64 = 1.0;
+pub const CANTILEVER_SIDE: f64 = 0.1;
+
+/// The GMS plate: rho 1000 kg/m^3, E 2 MPa, nu 0.3975.
+pub const PLATE_MATERIAL: Material = Material {
+    density: 1000.0,
+    young: 2.0e6,
+    poisson: 0.3975,
+};
+/// Plate length beyond the clamp and thickness (m).
+pub const PLATE_LENGTH: f64 = 0.2;
+pub const PLATE_THICKNESS: f64 = 0.02;
+
+/// Gravity of the static reference (m/s^2).
+pub const G: f64 = 9.81;
+
+fn wall_layers(re_factor: f64) -> f64 {
+    re_factor.ceil()
+}
+
+/// A clamped beam along x: material particles at the cell centres of x in [0, L], and
+/// `ceil(re/l0)` clamped layers at x = 0, -l0, -2 l0, the first on the clamped face (as in
+/// case 2); the section [-h/2, h/2] in the other directions, n cells across.
+fn beam_scene(
+    name: &str,
+    description: String,
+    dim: usize,
+    n_across: usize,
+    length: f64,
+    side: f64,
+    material: Material,
+    model: ElasticModel,
+) -> Scene {
+    let dp = side / n_across as f64;
+    let opts = SolverOptions {
+        model,
+        ..SolverOptions::default()
+    };
+    let walls = wall_layers(opts.re_factor);
+    let h = 0.5 * side;
+    let lo = |x: f64| {
+        let mut v = vec![x, -h];
+        if dim == 3 {
+            v.push(-h);
+        }
+        v
+    };
+    let hi = |x: f64| {
+        let mut v = vec![x, h];
+        if dim == 3 {
+            v.push(h);
+        }
+        v
+    };
+    let mut tip = vec![length, 0.0];
+    let mut g = vec![0.0, -G];
+    if dim == 3 {
+        tip.push(0.0);
+        g = vec![0.0, 0.0, -G];
+    }
+    Scene {
+        name: name.into(),
+        description,
+        dimension: dim,
+        particle_spacing: dp,
+        solver: opts,
+        gravity: Gravity {
+            vector: g,
+            paper_ramp_period: None,
+        },
+        bodies: vec![Body {
+            name: "beam".into(),
+            material,
+            boxes: vec![
+                Region {
+                    min: lo(0.0),
+                    max: hi(length),
+                },
+                Region {
+                    min: lo(-(walls - 0.5) * dp),
+                    max: hi(0.5 * dp),
+                },
+            ],
+            velocity: None,
+        }],
+        boundaries: vec![Boundary {
+            name: "clamp".into(),
+            kind: BoundaryKind::Clamped,
+            body: "beam".into(),
+            region: Region {
+                min: lo(-(walls - 0.5) * dp),
+                max: hi(0.25 * dp),
+            },
+            axes: None,
+        }],
+        loads: vec![],
+        probes: vec![Probe {
+            name: "tip".into(),
+            point: tip,
+            body: None,
+        }],
+        end_time: 1.0,
+        output_interval: 1e-3,
+        analysis: Some(crate::scene::Analysis {
+            probe: "tip".into(),
+            component: if dim == 3 { "z".into() } else { "y".into() },
+        }),
+    }
+}
+
+/// The slender 3D cantilever with `n` particles across its 0.1 m square section.
+pub fn cantilever3d_scene(n: usize, model: ElasticModel) -> Scene {
+    beam_scene(
+        "cantilever3d",
+        format!(
+            "Slender 3D cantilever (issue 7): L = 1 m beyond the clamp, 0.1 x 0.1 m section ({n} particles across), \
+            rho 1000, E 100 MPa, nu 0.3, clamped by a particle layer on the face x = 0 and 2 wall layers behind it, gravity -z applied suddenly. \
+            Reference: reference/cantilever3d_fem.json. Probe: the tip on the axis (x = L)."
+        ),
+        3,
+        n,
+        CANTILEVER_LENGTH,
+        CANTILEVER_SIDE,
+        CANTILEVER_MATERIAL,
+        model,
+    )
+}
+
+/// The GMS oscillating plate (plane strain) with `n` particles through its 0.02 m thickness.
+pub fn plate2d_scene(n: usize, model: ElasticModel) -> Scene {
+    beam_scene(
+        "plate2d",
+        format!(
+            "Oscillating plate of Gray, Monaghan & Swift (2001), plane strain (issue 7): L = 0.2 m beyond the clamp, \
+            H = 0.02 m ({n} particles through the thickness), rho 1000, E 2 MPa, nu 0.3975, clamped by a particle layer on x = 0 and 2 wall layers behind it. Reference: reference/plate2d_fem.json. Probe: the tip on the axis (x = L)."
+        ),
+        2,
+        n,
+        PLATE_LENGTH,
+        PLATE_THICKNESS,
+        PLATE_MATERIAL,
+        model,
+    )
+}
+
+/// First frequency and static tip deflection of a scene's linearisation.
+#[derive(Clone, Debug)]
+pub struct LinearBending {
+    pub particles: usize,
+    /// First frequency (Hz).
+    pub f1: f64,
+    /// Static tip deflection along the gravity component of the scene's analysis (m).
+    pub tip: f64,
+    /// Stiffness products taken (each two force evaluations).
+    pub products: u64,
+    /// Wall time (s).
+    pub wall: f64,
+}
+
+/// Linearised first frequency and static tip deflection under the scene's gravity.
+pub fn linear_bending(scene: &Scene) -> Result<LinearBending, SceneError> {
+    let t0 = std::time::Instant::now();
+    let e = |m: String| SceneError {
+        field: String::new(),
+        message: m,
+    };
+    macro_rules! run {
+        ($d:literal) => {{
+            let mut model = Model::<$d>::build(scene)?;
+            let g = Vect::<$d>::from_fn(|k, _| scene.gravity.vector[k]);
+            let comp = $d - 1;
+            let tip_point = model.probes[0].point;
+            let (u, w1, products) = {
+                let mut lin = Linearised::new(&model.world).map_err(|x| e(x.to_string()))?;
+                let u = lin.static_gravity(g, 1e-10).map_err(|x| e(x.to_string()))?;
+                let (w1, _) = lin.lowest_mode(&u, 1e-10).map_err(|x| e(x.to_string()))?;
+                (u, w1, lin.products)
+            };
+            let tip = field_at(&mut model.world, &u, &tip_point, None)
+                .map_err(|x| e(x.to_string()))?[comp];
+            LinearBending {
+                particles: model.world.len(),
+                f1: w1 / (2.0 * std::f64::consts::PI),
+                tip,
+                products,
+                wall: t0.elapsed().as_secs_f64(),
+            }
+        }};
+    }
+    Ok(match scene.dimension {
+        2 => run!(2),
+        _ => run!(3),
+    })
+}

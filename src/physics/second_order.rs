@@ -1,0 +1,500 @@
+//! The second-order elastic operator (the default): displacement gradients and Hessians from a
+//! quadratic-consistent weighted least-squares fit over each particle's bonds, a strain energy
+//! integrated over each particle's cell to second order, and a stabilisation of the motion
+//! that no quadratic field explains, with the shear modulus as its stiffness (no tuned factor).
+//!
+//! Why (issue 7, docs/model.md): the first-order corrected operator is exact for linear fields
+//! only, so at a free surface, where bending strains are largest and the neighbourhood is one
+//! sided, its gradient of a bending field is wrong to O(l0); its energy samples the strain
+//! energy density at the cell centre (midpoint rule), which under-counts a bending energy by
+//! (l0/h)^2; and its zero-energy modes need a stabilisation whose hand-set factor moves results.
+//! Here every term is exact for a quadratic displacement field, which is what pure bending is:
+//!
+//! * gradient H_i = sum_j (u_j - u_i) g_ij^T and Hessian G_i^(a) = sum_j (u_j - u_i) h_ij^(a)T,
+//!   with (g_ij, h_ij) the rows of the inverse moment matrix of the basis (xi, xi xi^T) weighted
+//!   by w0_ij / |r0_ij|^2 (Eq. (8)); in a full symmetric neighbourhood g_ij equals the
+//!   first-order corrected weight K_i^-1 r0_ij w0 / |r0|^2 (odd and even moments decouple);
+//! * cell energy V [W(E) + l0^2 / 12 sum_a w(sym(F^T G^(a)))]: the Taylor expansion of the
+//!   energy density over the cell, int_cell W = V [W + l0^2 / 24 sum_a d_a^2 W], exact for a
+//!   cubic density; W is Saint Venant-Kirchhoff in the Green strain E (Eqs. (6)-(7) at small
+//!   strain), w(e) = mu e:e + lambda / 2 tr(e)^2, and F^T G^(a) = d_a E to first order
+//!   (objective: unchanged by a rigid rotation);
+//! * residual energy V sum_j (w0_ij / n_i) mu |sym(d_ij n_ij^T)|^2 with d_ij the part of the
+//!   bond's motion that the local quadratic field does not explain,
+//!   d_ij = [u_j - u_i - H_i r0 - 1/2 G_i : r0 r0] / |r0|, n = r0 / |r0|: zero for every
+//!   quadratic field, positive for the sub-cell (hourglass) modes; mu, not lambda, so that it
+//!   does not lock near incompressibility.
+//!
+//! Forces are -dE/dx of that one energy, in gather form over the stored (directed) bonds with the
+//! mirror index of each bond, so they conserve momentum and do not depend on threads.
+use nalgebra::DMatrix;
+
+use super::bonds::Bonds;
+use super::dim::{Dim, Mat, Space, Vect};
+#[allow(unused_imports)]
+use super::par::*;
+use super::particles::Particles;
+use crate::par_iter_mut;
+
+/// Smallest ratio of the smallest to the largest singular value of the (scaled) moment matrix
+/// for which the quadratic fit is used; below it the particle falls back to the first-order
+/// corrected gradient (e.g. a particle left with bonds in one plane after fracture).
+pub const QUADRATIC_MIN_CONDITION: f64 = 1e-9;
+
+/// Per-bond weights and per-particle state of the second-order operator.
+#[derive(Clone, Debug, Default)]
+pub struct SecondOrder<const D: usize> {
+    /// Gradient weight g_b of each directed bond (1/m).
+    pub g: Vec<Vect<D>>,
+    /// Hessian weights h_b (symmetric, 1/m^2): d_a d_c u = sum_b (u_j - u_i) h_b[a][c].
+    pub h: Vec<Mat<D>>,
+    /// Index of the reverse bond j -> i of each bond i -> j.
+    pub mirror: Vec<u32>,
+    /// Whether particle i has the quadratic fit (else: first-order fallback, h = 0).
+    pub quadratic: Vec<bool>,
+    /// Reference number density n_i of the residual weights (sum of w0 over the original bonds).
+    pub n_ref: Vec<f64>,
+    /// Span projector P_i = sum_b r0_b g_b^T: exactly the identity for a full-rank
+    /// neighbourhood (then `full[i]`), the projector on the bonds' span otherwise.
+    pub span: Vec<Mat<D>>,
+    /// Whether P_i is the identity.
+    pub full: Vec<bool>,
+    /// Particles of a clamped group (all axes held): a rigid grip that carries no strain
+    /// energy of its own; its particles still enter their neighbours' fits with u prescribed.
+    /// So a clamp face with a particle layer on it is where the displacement is zero, and the
+    /// material ends there (the wall layers behind it are the grip, not material).
+    pub rigid: Vec<bool>,
+    /// Rigid particles with no free particle within 1.01 l0: the wall layers behind a clamped
+    /// face. They enter no fit: the displacement field has a kink at the face (the shear strain
+    /// of the root is not zero), and a fit across it would be wrong to O(1) in the gradient.
+    pub behind: Vec<bool>,
+    /// re / l0, for the fit weights w(|s|) of the quantised reference vectors.
+    pub re_factor: f64,
+}
+
+/// Scratch of the force passes.
+#[derive(Clone, Debug, Default)]
+pub struct SecondOrderScratch<const D: usize> {
+    /// Displacement gradient H_i.
+    pub grad: Vec<Mat<D>>,
+    /// Displacement Hessian G_i^(a), a = 0..D: (G^(a))_{k c} = d_a d_c u_k.
+    pub hess: Vec<[Mat<D>; D]>,
+    /// dE/d(u_j - u_i) of each directed bond (N).
+    pub dbond: Vec<Vect<D>>,
+}
+
+/// Number of basis functions of the quadratic fit: D linear + D (D + 1) / 2 quadratic.
+const fn basis_len(d: usize) -> usize {
+    d + d * (d + 1) / 2
+}
+
+/// The quadratic basis at s = xi / l0: (s_a, then s_a s_c for a <= c).
+fn basis<const D: usize>(s: &Vect<D>, out: &mut [f64]) {
+    let mut k = 0;
+    for a in 0..D {
+        out[k] = s[a];
+        k += 1;
+    }
+    for a in 0..D {
+        for c in a..D {
+            out[k] = s[a] * s[c];
+            k += 1;
+        }
+    }
+}
+
+impl<const D: usize> SecondOrder<D>
+where
+    Space: Dim<D>,
+{
+    /// Weights of all particles from their current (intact) bonds; `rigid` marks the particles
+    /// of clamped groups.
+    pub fn new(bonds: &Bonds<D>, l0: f64, re_factor: f64, n: usize, rigid: &[bool]) -> Self {
+        let mut s = SecondOrder {
+            g: vec![Vect::<D>::zeros(); bonds.len()],
+            h: vec![Mat::<D>::zeros(); bonds.len()],
+            mirror: mirror_index(bonds),
+            quadratic: vec![false; n],
+            span: vec![Mat::<D>::identity(); n],
+            full: vec![true; n],
+            rigid: rigid.to_vec(),
+            behind: vec![false; n],
+            re_factor,
+            n_ref: (0..n)
+                .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
+                .collect(),
+        };
+        let near = 1.01 * l0;
+        for i in 0..n {
+            s.behind[i] = s.rigid[i]
+                && bonds
+                    .of(i)
+                    .all(|b| s.rigid[bonds.nbr[b] as usize] || bonds.r0[b].norm() > near);
+        }
+        for i in 0..n {
+            s.refresh(bonds, l0, i);
+        }
+        s
+    }
+
+    /// Weight of bond b in the fits and the residuals: w0, or 0 for a bond to a wall particle
+    /// behind a clamped face (and for a broken bond).
+    #[inline(always)]
+    pub fn weight(&self, bonds: &Bonds<D>, b: usize) -> f64 {
+        if self.behind[bonds.nbr[b] as usize] {
+            0.0
+        } else {
+            bonds.w0[b]
+        }
+    }
+
+    /// Recomputes the weights of particle i from its intact bonds (after fracture) and its span
+    /// projector.
+    pub fn refresh(&mut self, bonds: &Bonds<D>, l0: f64, i: usize) {
+        let m = basis_len(D);
+        let range = bonds.of(i);
+        let mut mom = DMatrix::<f64>::zeros(m, m);
+        let mut p = vec![0.0; m];
+        for b in range.clone() {
+            let w0 = self.weight(bonds, b);
+            if w0 == 0.0 {
+                continue;
+            }
+            let s = quantised(&bonds.r0[b], l0);
+            let om = super::bonds::weight(s.norm(), self.re_factor) / s.norm_squared();
+            basis::<D>(&s, &mut p);
+            for r in 0..m {
+                for c in 0..m {
+                    mom[(r, c)] += om * p[r] * p[c];
+                }
+            }
+        }
+        let inv = quadratic_inverse(&mom);
+        self.quadratic[i] = inv.is_some();
+        match inv {
+            Some(inv) => {
+                for b in range {
+                    let w0 = self.weight(bonds, b);
+                    if w0 == 0.0 {
+                        self.g[b] = Vect::<D>::zeros();
+                        self.h[b] = Mat::<D>::zeros();
+                        continue;
+                    }
+                    let s = quantised(&bonds.r0[b], l0);
+                    let om = super::bonds::weight(s.norm(), self.re_factor) / s.norm_squared();
+                    basis::<D>(&s, &mut p);
+                    let coef: Vec<f64> = (0..m)
+                        .map(|r| om * (0..m).map(|c| inv[(r, c)] * p[c]).sum::<f64>())
+                        .collect();
+                    let mut g = Vect::<D>::zeros();
+                    for a in 0..D {
+                        g[a] = coef[a] / l0;
+                    }
+                    // u = ... + 1/2 sum_ac d_ac u xi_a xi_c: the coefficient of s_a s_c is
+                    // d_ac u l0^2 for a < c and 1/2 d_aa u l0^2 on the diagonal.
+                    let mut h = Mat::<D>::zeros();
+                    let mut k = D;
+                    for a in 0..D {
+                        for c in a..D {
+                            let v = coef[k] / (l0 * l0);
+                            if a == c {
+                                h[(a, a)] = 2.0 * v;
+                            } else {
+                                h[(a, c)] = v;
+                                h[(c, a)] = v;
+                            }
+                            k += 1;
+                        }
+                    }
+                    self.g[b] = g;
+                    self.h[b] = h;
+                }
+            }
+            None => {
+                // First-order corrected gradient (pseudo-inverse of the shape tensor) and no
+                // Hessian: exact for linear fields in the span of the remaining bonds.
+                let k = super::elastic::shape_tensor(bonds, i);
+                let k_inv = <Space as Dim<D>>::sym_pinv(&k);
+                for b in range {
+                    let w0 = self.weight(bonds, b);
+                    let r0 = bonds.r0[b];
+                    self.g[b] = if w0 == 0.0 {
+                        Vect::<D>::zeros()
+                    } else {
+                        k_inv * r0 * (w0 / r0.norm_squared())
+                    };
+                    self.h[b] = Mat::<D>::zeros();
+                }
+            }
+        }
+        let mut span = Mat::<D>::zeros();
+        for b in bonds.of(i) {
+            if self.weight(bonds, b) != 0.0 {
+                span += quantised(&bonds.r0[b], l0) * l0 * self.g[b].transpose();
+            }
+        }
+        // A full-rank fit reproduces linear fields: sum r0 g^T = I to round-off.
+        self.full[i] = (span - Mat::<D>::identity()).amax() < 1e-8;
+        self.span[i] = if self.full[i] {
+            Mat::<D>::identity()
+        } else {
+            (span + span.transpose()) * 0.5
+        };
+    }
+}
+
+/// Bits of l0 kept in the reference vectors of the fit.
+const QUANTUM_BITS: i32 = 30;
+
+/// r0 / l0 rounded to 2^-QUANTUM_BITS (1e-9 of l0). The fit's weights are ~40 times as
+/// sensitive to the reference geometry as the first-order operator's (a corner particle's
+/// moment matrix), so the round-off of r0 of a body placed away from the origin (1e-16 relative
+/// near it, 2e-9 l0 at 1e6 m) is first snapped to the same values, with the weights w(|s|)
+/// evaluated on the snapped vectors: invariance tests (tests/invariance.rs) hold to 1e-9.
+fn quantised<const D: usize>(r0: &Vect<D>, l0: f64) -> Vect<D> {
+    let q = 2f64.powi(QUANTUM_BITS);
+    (r0 / l0).map(|c| (c * q).round() / q)
+}
+
+/// Inverse of the moment matrix when it is well conditioned (SVD, relative threshold).
+fn quadratic_inverse(mom: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let svd = mom.clone().svd(true, true);
+    let smax = svd.singular_values.max();
+    let smin = svd.singular_values.min();
+    if !(smax > 0.0) || smin < QUADRATIC_MIN_CONDITION * smax {
+        return None;
+    }
+    svd.pseudo_inverse(0.0).ok()
+}
+
+/// For each directed bond i -> j the index of j -> i (bonds are stored in both directions with
+/// the neighbours of each particle sorted).
+pub fn mirror_index<const D: usize>(bonds: &Bonds<D>) -> Vec<u32> {
+    let n = bonds.start.len() - 1;
+    let mut m = vec![u32::MAX; bonds.len()];
+    for i in 0..n {
+        for b in bonds.of(i) {
+            let j = bonds.nbr[b] as usize;
+            let r = bonds.of(j);
+            let slice = &bonds.nbr[r.clone()];
+            let k = slice
+                .binary_search(&(i as u32))
+                .expect("bonds are symmetric: j -> i exists for every i -> j");
+            m[b] = (r.start + k) as u32;
+        }
+    }
+    m
+}
+
+/// Linear isotropic stress of a (symmetric) strain: 2 mu e + lambda tr(e) I.
+#[inline(always)]
+fn lin_stress<const D: usize>(e: &Mat<D>, mu: f64, lambda: f64) -> Mat<D> {
+    e * (2.0 * mu) + Mat::<D>::identity() * (lambda * e.trace())
+}
+
+impl<const D: usize> SecondOrder<D>
+where
+    Space: Dim<D>,
+{
+    /// Green strain of F = P + H: (H + H^T + H^T H) / 2 for a full neighbourhood (P = I, exact
+    /// zero at rest), (P H + H^T P + H^T H) / 2 in the span P otherwise.
+    #[inline(always)]
+    fn green(h: &Mat<D>, span: &Mat<D>, full: bool) -> Mat<D> {
+        if full {
+            (h + h.transpose() + h.transpose() * h) * 0.5
+        } else {
+            (span * h + h.transpose() * span + h.transpose() * h) * 0.5
+        }
+    }
+
+    /// Residual d_ij |r0| of bond b of particle i with displacement difference du.
+    #[inline(always)]
+    fn residual(du: &Vect<D>, r0: &Vect<D>, grad: &Mat<D>, hess: &[Mat<D>; D]) -> Vect<D> {
+        let mut q = Vect::<D>::zeros();
+        for a in 0..D {
+            q += hess[a] * r0 * r0[a];
+        }
+        du - grad * r0 - q * 0.5
+    }
+
+    /// dE/d(residual) of one bond: V w0/n_i mu (d + (d.n) n) / |r0| with d = res / |r0|.
+    #[inline(always)]
+    fn residual_conjugate(res: &Vect<D>, r0: &Vect<D>, c: f64) -> Vect<D> {
+        // c = V w0 / n_i mu / |r0|^2; mu |sym(d n^T)|^2 = mu/2 (|d|^2 + (d.n)^2).
+        let l2 = r0.norm_squared();
+        (res + r0 * (res.dot(r0) / l2)) * c
+    }
+
+    /// Internal forces of the current state (one energy, gather form).
+    #[allow(clippy::too_many_arguments)]
+    pub fn forces(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        lame: &[(f64, f64)],
+        vol: &[f64],
+        volume: f64,
+        l0: f64,
+        s: &mut SecondOrderScratch<D>,
+        force: &mut [Vect<D>],
+    ) {
+        let n = p.len();
+        s.grad.resize(n, Mat::<D>::zeros());
+        s.hess.resize(n, [Mat::<D>::zeros(); D]);
+        let cell = l0 * l0 / 12.0;
+        // Per-particle slices of the per-bond output (safe disjoint borrows for the gather).
+        s.dbond.resize(bonds.len(), Vect::<D>::zeros());
+        let mut slices: Vec<&mut [Vect<D>]> = Vec::with_capacity(n);
+        let mut rest: &mut [Vect<D>] = &mut s.dbond;
+        for i in 0..n {
+            let (head, tail) = rest.split_at_mut(bonds.of(i).len());
+            slices.push(head);
+            rest = tail;
+        }
+        // Pass 1, per particle i, three loops over its own bonds (their data stays in cache):
+        // H_i and G_i; the conjugates A = dE/dH_i and B = dE/dG_i from the cell energy and the
+        // residuals of i's bonds; then dE/d du_b = A g_b + sum_a B^(a) h_b[a] + rho_b per bond.
+        par_iter_mut!(s.grad)
+            .zip(par_iter_mut!(s.hess))
+            .zip(par_iter_mut!(slices))
+            .enumerate()
+            .for_each(|(i, ((gr, he), out))| {
+                let ui = p.u[i];
+                let mut h = Mat::<D>::zeros();
+                let mut g = [Mat::<D>::zeros(); D];
+                let quad = self.quadratic[i];
+                let range = bonds.of(i);
+                for b in range.clone() {
+                    if self.weight(bonds, b) == 0.0 {
+                        continue;
+                    }
+                    let du = p.u[bonds.nbr[b] as usize] - ui;
+                    h += du * self.g[b].transpose();
+                    if quad {
+                        let hb = &self.h[b];
+                        for (a, ga) in g.iter_mut().enumerate() {
+                            *ga += du * hb.row(a);
+                        }
+                    }
+                }
+                *gr = h;
+                *he = g;
+                if self.rigid[i] {
+                    out.iter_mut().for_each(|d| *d = Vect::<D>::zeros());
+                    return;
+                }
+                let (mu, lambda) = lame[p.body[i] as usize];
+                let full = self.full[i];
+                let f = self.span[i] + h;
+                let e = Self::green(&h, &self.span[i], full);
+                let stress = lin_stress(&e, mu, lambda);
+                // dW/dH = dW/dF = F S (first Piola-Kirchhoff), times the cell volume.
+                let mut a_i = f * stress * vol[i];
+                let mut b_i = [Mat::<D>::zeros(); D];
+                if quad {
+                    let vc = vol[i] * cell;
+                    for a in 0..D {
+                        let ea = f.transpose() * g[a];
+                        let sig = lin_stress(&((ea + ea.transpose()) * 0.5), mu, lambda);
+                        // d/dG^(a) of w(sym(F^T G)) = F sigma; d/dF = G sigma.
+                        b_i[a] = f * sig * vc;
+                        a_i += g[a] * sig * vc;
+                    }
+                }
+                let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
+                for b in range.clone() {
+                    let w0 = self.weight(bonds, b);
+                    if w0 == 0.0 {
+                        continue;
+                    }
+                    let r0 = bonds.r0[b];
+                    let du = p.u[bonds.nbr[b] as usize] - ui;
+                    let res = Self::residual(&du, &r0, &h, &g);
+                    let rho = Self::residual_conjugate(&res, &r0, cres * w0 / r0.norm_squared());
+                    a_i -= rho * r0.transpose();
+                    if quad {
+                        for a in 0..D {
+                            b_i[a] -= rho * r0.transpose() * (0.5 * r0[a]);
+                        }
+                    }
+                }
+                for (k, b) in range.enumerate() {
+                    let w0 = self.weight(bonds, b);
+                    if w0 == 0.0 {
+                        out[k] = Vect::<D>::zeros();
+                        continue;
+                    }
+                    let r0 = bonds.r0[b];
+                    let du = p.u[bonds.nbr[b] as usize] - ui;
+                    let mut d = a_i * self.g[b];
+                    if quad {
+                        let hb = &self.h[b];
+                        for a in 0..D {
+                            d += b_i[a] * hb.row(a).transpose();
+                        }
+                    }
+                    let res = Self::residual(&du, &r0, &h, &g);
+                    out[k] = d + Self::residual_conjugate(&res, &r0, cres * w0 / r0.norm_squared());
+                }
+            });
+        let dbond = &s.dbond;
+        // Pass 2: f_i = sum_j (dE/d du_ij - dE/d du_ji), du_ij = u_j - u_i.
+        par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
+            let mut acc = Vect::<D>::zeros();
+            for b in bonds.of(i) {
+                acc += dbond[b] - dbond[self.mirror[b] as usize];
+            }
+            *f_out = acc;
+        });
+    }
+
+    /// Strain energy of the current state (J), the same energy whose gradient `forces` is.
+    #[allow(clippy::too_many_arguments)]
+    pub fn strain_energy(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        lame: &[(f64, f64)],
+        vol: &[f64],
+        volume: f64,
+        l0: f64,
+        s: &SecondOrderScratch<D>,
+    ) -> f64 {
+        let cell = l0 * l0 / 12.0;
+        let w = |e: &Mat<D>, mu: f64, lambda: f64| {
+            mu * e.component_mul(e).sum() + 0.5 * lambda * e.trace().powi(2)
+        };
+        let mut total = 0.0;
+        for i in 0..p.len() {
+            let Some(h) = s.grad.get(i) else { break };
+            if self.rigid[i] {
+                continue;
+            }
+            let g = &s.hess[i];
+            let (mu, lambda) = lame[p.body[i] as usize];
+            let f = self.span[i] + h;
+            let e = Self::green(h, &self.span[i], self.full[i]);
+            total += vol[i] * w(&e, mu, lambda);
+            if self.quadratic[i] {
+                for ga in g.iter() {
+                    let ea = f.transpose() * ga;
+                    total += vol[i] * cell * w(&((ea + ea.transpose()) * 0.5), mu, lambda);
+                }
+            }
+            let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
+            for b in bonds.of(i) {
+                let w0 = self.weight(bonds, b);
+                if w0 == 0.0 {
+                    continue;
+                }
+                let r0 = bonds.r0[b];
+                let du = p.u[bonds.nbr[b] as usize] - p.u[i];
+                let res = Self::residual(&du, &r0, h, g);
+                let l2 = r0.norm_squared();
+                // mu/2 (|d|^2 + (d.n)^2), d = res / |r0|.
+                total += cres * w0 * 0.5 * (res.norm_squared() + res.dot(&r0).powi(2) / l2) / l2;
+            }
+        }
+        total
+    }
+}

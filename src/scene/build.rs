@@ -3,7 +3,7 @@
 use super::{axis_index, err, Region, Scene, SceneError};
 use crate::physics::boundary::GravityLaw;
 use crate::physics::world::GroupInit;
-use crate::physics::{BodyInit, Dim, Space, Vect, World};
+use crate::physics::{BodyInit, Dim, InitialVelocity, Space, Vect, World};
 
 /// A probe located in the built world.
 #[derive(Clone, Debug)]
@@ -85,11 +85,12 @@ where
                 name: b.name.clone(),
                 material: b.material,
                 points: pts,
-                velocity: b
-                    .velocity
-                    .as_deref()
-                    .map(vect::<D>)
-                    .unwrap_or_else(Vect::<D>::zeros),
+                velocity: InitialVelocity::Uniform(
+                    b.velocity
+                        .as_deref()
+                        .map(vect::<D>)
+                        .unwrap_or_else(Vect::<D>::zeros),
+                ),
             });
         }
         let select = |body: &str, r: &Region, field: &str| -> Result<Vec<u32>, SceneError> {

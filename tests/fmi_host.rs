@@ -1763,3 +1763,66 @@ fn coupling_outputs_velocity_is_the_rate_of_displacement() {
         last[0]
     );
 }
+
+#[test]
+fn fmu_state_of_a_scene_with_a_velocity_field_roundtrips() {
+    // The scene is part of the state (bincode): the velocity field, whose JSON is an untagged
+    // array-or-object, must encode and decode there too.
+    let _g = shared();
+    let a = api();
+    let mut v: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root().join("tests/data/small2d.json")).unwrap(),
+    )
+    .unwrap();
+    v["bodies"][0]["velocity"] = serde_json::json!({
+        "linear": [0.01, 0.0],
+        "angular": { "omega": 0.5, "center": [0.2, 0.0] },
+        "profiles": [
+            { "mode_shape": { "shape": "clamped_free_1", "axis": "x", "component": "y",
+                              "x0": 0.0, "length": 0.4, "amplitude": 0.05 } },
+            { "table": { "axis": "y", "component": "x", "points": [[-0.05, 0.0], [0.05, 0.02]] } }
+        ]
+    });
+    let u = Unpacked::from_scene(Scene::from_json(&v.to_string()).unwrap(), "vstate");
+    let outs = real_outputs(&u);
+    let i = Inst::new(&u);
+    i.init(None);
+    let h = 0.002;
+    for k in 0..5 {
+        assert_eq!(i.step(k as f64 * h, h), OK);
+    }
+    let run = |inst: &Inst| -> Vec<u64> {
+        let mut r = Vec::new();
+        for k in 5..10 {
+            assert_eq!(inst.step(k as f64 * h, h), OK);
+            r.extend(inst.real(&outs).iter().map(|x| x.to_bits()));
+        }
+        r
+    };
+    unsafe {
+        let mut st: *mut c_void = null_mut();
+        assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK);
+        let mut size = 0usize;
+        assert_eq!((a.fmi2SerializedFMUstateSize)(i.c, st, &mut size), OK);
+        let mut buf = vec![0 as c_char; size];
+        assert_eq!(
+            (a.fmi2SerializeFMUstate)(i.c, st, buf.as_mut_ptr(), size),
+            OK
+        );
+        let first = run(&i);
+        assert_eq!((a.fmi2SetFMUstate)(i.c, st), OK, "{}", i.log.all());
+        assert_eq!(run(&i), first, "restored run differs");
+        assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
+        let j = Inst::new(&u);
+        let mut st2: *mut c_void = null_mut();
+        assert_eq!(
+            (a.fmi2DeSerializeFMUstate)(j.c, buf.as_ptr(), size, &mut st2),
+            OK,
+            "{}",
+            j.log.all()
+        );
+        assert_eq!((a.fmi2SetFMUstate)(j.c, st2), OK, "{}", j.log.all());
+        assert_eq!((a.fmi2FreeFMUstate)(j.c, &mut st2), OK);
+        assert_eq!(run(&j), first, "deserialised run differs");
+    }
+}

@@ -2,7 +2,7 @@
 //! deflection. Shared by the command line, the case reports and the benchmark.
 use crate::analysis::{dominant_frequency, peak};
 use crate::scene::limits::num;
-use crate::scene::{axis_index, Scene};
+use crate::scene::{axis_index, Scene, SceneWarning};
 use crate::sim::Simulation;
 use serde::Serialize;
 use std::time::Instant;
@@ -59,7 +59,10 @@ pub struct RunOptions {
 
 /// What a run reports while it runs.
 #[derive(Clone, Copy, Debug)]
-pub enum RunEvent {
+pub enum RunEvent<'a> {
+    /// The scene was built and will run; a warning of under-resolved geometry (before the
+    /// first step).
+    Warning(&'a SceneWarning),
     /// An output sample at this time (s) was taken.
     Sample(f64),
 }
@@ -95,6 +98,8 @@ pub struct RunResult {
     /// Largest displacement component of the analysis probe over the run (m).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_m: Option<f64>,
+    /// Warnings of under-resolved geometry (`Scene::warnings`).
+    pub warnings: Vec<SceneWarning>,
     pub series: Series,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
@@ -190,12 +195,14 @@ pub fn check_finite(r: &RunResult) -> Result<(), String> {
 /// solver.max_steps steps. A run that produces a non-finite number is an error.
 pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunResult, String> {
     run_scene_with(scene, RunOptions::default(), |e| {
-        let RunEvent::Sample(t) = e;
-        on_sample(t)
+        if let RunEvent::Sample(t) = e {
+            on_sample(t)
+        }
     })
 }
 
-/// [`run_scene`] with options; `on_event` hears of every output sample.
+/// [`run_scene`] with options; `on_event` hears of the scene's warnings once it is built and
+/// of every output sample.
 pub fn run_scene_with(
     scene: &Scene,
     opts: RunOptions,
@@ -204,6 +211,10 @@ pub fn run_scene_with(
     let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
     check_free_particles(&sim)?;
     sim.check_work(scene.end_time).map_err(|e| e.to_string())?;
+    // Reported once the run is sure to start (a refused scene gets its error alone).
+    for w in sim.warnings() {
+        on_event(RunEvent::Warning(w));
+    }
     let np = scene.probes.len();
     let mut series = Series {
         probes: scene.probes.iter().map(|p| p.name.clone()).collect(),
@@ -281,6 +292,7 @@ pub fn run_scene_with(
         strain_energy: sim.strain_energy(),
         frequency_hz,
         peak_m,
+        warnings: sim.warnings().to_vec(),
         series,
         error,
     };

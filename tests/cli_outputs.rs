@@ -1,4 +1,5 @@
-//! What `mps run` writes besides the probes (issue 7): the energy series with `--energy`.
+//! What `mps run` writes besides the probes (issue 7): the energy series with `--energy`, and
+//! warnings of under-resolved geometry on stderr.
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -62,6 +63,7 @@ fn energy_series_is_written_with_energy() {
     v["output_interval"] = 0.002.into();
     let (ok, stdout, stderr) = run(&d, &v, &["--energy"]);
     assert!(ok, "{stdout}\n{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
     assert!(stdout.contains("energies written to"), "{stdout}");
     let (head, rows) = csv(&d.join("o/energy.csv"));
     assert_eq!(
@@ -111,12 +113,45 @@ fn energy_series_is_written_with_energy() {
 }
 
 #[test]
-fn no_energy_file_without_the_flag() {
+fn no_energy_file_without_the_flag_and_summary_lists_warnings() {
     let d = scratch("noenergy");
     let mut v = load("tests/data/small2d.json");
     v["end_time"] = 0.004.into();
     let (ok, stdout, stderr) = run(&d, &v, &[]);
     assert!(ok, "{stdout}\n{stderr}");
     assert!(!d.join("o/energy.csv").exists());
-    assert!(d.join("o/probes.csv").exists());
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["warnings"], json!([]));
+}
+
+#[test]
+fn under_resolved_geometry_is_warned_on_stderr() {
+    let d = scratch("warn");
+    // A plate one particle thick.
+    let v = json!({
+        "name": "plate", "dimension": 3, "particle_spacing": 0.01,
+        "bodies": [{ "name": "plate",
+                     "material": { "density": 1000.0, "young": 1e6, "poisson": 0.3 },
+                     "boxes": [{ "min": [0, 0, 0], "max": [0.2, 0.1, 0.01] }] }],
+        "end_time": 0.002, "output_interval": 0.001
+    });
+    let (ok, stdout, stderr) = run(&d, &v, &["--json"]);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(
+        stderr.contains(
+            "warning: scene warning in bodies[0] ('plate').boxes[0]: 200 of its 200 particles"
+        ) && stderr.contains("one particle thick along z")
+            && stderr.contains("refine particle_spacing"),
+        "{stderr}"
+    );
+    let r: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(r["warnings"][0]["field"], "bodies[0] ('plate').boxes[0]");
+    // Case 2 (end layers one particle thick, bonded to the beam) is fine.
+    let mut v = load("scenes/case2_beam.json");
+    v["end_time"] = 0.001.into();
+    v["analysis"] = Value::Null;
+    let (ok, stdout, stderr) = run(&d, &v, &[]);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
 }

@@ -1765,6 +1765,51 @@ fn coupling_outputs_velocity_is_the_rate_of_displacement() {
 }
 
 #[test]
+fn instantiation_logs_under_resolved_geometry() {
+    let _g = shared();
+    let plate = Scene::from_json(
+        &serde_json::json!({
+            "name": "plate", "dimension": 3, "particle_spacing": 0.01,
+            "bodies": [{ "name": "plate",
+                         "material": { "density": 1000.0, "young": 1e6, "poisson": 0.3 },
+                         "boxes": [{ "min": [0, 0, 0], "max": [0.2, 0.1, 0.01] }] }],
+            "end_time": 0.01, "output_interval": 0.001
+        })
+        .to_string(),
+    )
+    .unwrap();
+    let u = Unpacked::from_scene(plate, "warn");
+    let i = Inst::new(&u);
+    let warnings: Vec<_> = i
+        .log
+        .0
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|m| m.0 == 1)
+        .cloned()
+        .collect();
+    assert_eq!(warnings.len(), 1, "{}", i.log.all());
+    let (_, cat, msg, name) = &warnings[0];
+    assert_eq!((cat.as_str(), name.as_str()), ("logStatusWarning", "inst"));
+    assert!(
+        msg.starts_with("scene warning in bodies[0] ('plate').boxes[0]:")
+            && msg.contains("one particle thick along z")
+            && msg.contains("refine particle_spacing"),
+        "{msg}"
+    );
+    // Case 2 is resolved: nothing logged at instantiation but the (debug) events.
+    let case2 = Scene::load(&root().join("scenes/case2_beam.json")).unwrap();
+    let u = Unpacked::from_scene(case2, "warn");
+    let i = Inst::new(&u);
+    assert!(
+        i.log.0.lock().unwrap().iter().all(|m| m.0 != 1),
+        "{}",
+        i.log.all()
+    );
+}
+
+#[test]
 fn fmu_state_of_a_scene_with_a_velocity_field_roundtrips() {
     // The scene is part of the state (bincode): the velocity field, whose JSON is an untagged
     // array-or-object, must encode and decode there too.

@@ -44,6 +44,7 @@ where
     };
     let scene = spinning(D, n, model, omega, c);
     let mut m = Model::<D>::build(&scene).unwrap();
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
     let w = &mut m.world;
     let rotational = model != "corrected";
     let wn = omega3.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -230,6 +231,7 @@ fn mode_shape_and_table_give_their_velocities_at_the_particles() {
     }));
     let scene = Scene::from_json(&v.to_string()).unwrap();
     let m = Model::<2>::build(&scene).unwrap();
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
     let w = &m.world;
     let table = |y: f64| {
         if y <= -0.005 {

@@ -596,3 +596,111 @@ fn a_2d_angular_velocity_is_a_number() {
     v["bodies"][0]["velocity"] = serde_json::json!({"angular": {"omega": 3, "center": [0, 0]}});
     Simulation::new(&Scene::from_json(&v.to_string()).unwrap()).unwrap();
 }
+
+/// A scene of one body made of `boxes` (2D or 3D by the boxes' size), no supports.
+fn one_body(boxes: serde_json::Value, dp: f64) -> Scene {
+    let d = boxes[0]["min"].as_array().unwrap().len();
+    let v = serde_json::json!({
+        "name": "plate", "dimension": d, "particle_spacing": dp,
+        "bodies": [{ "name": "plate",
+                     "material": { "density": 1000.0, "young": 1e6, "poisson": 0.3 },
+                     "boxes": boxes }],
+        "end_time": 0.01, "output_interval": 0.001
+    });
+    Scene::from_json(&v.to_string()).unwrap()
+}
+
+#[test]
+fn under_resolved_geometry_is_warned_with_its_field() {
+    let messages = |s: &Scene| -> Vec<String> {
+        let w = s.warnings();
+        // The same warnings come with the built simulation.
+        assert_eq!(Simulation::new(s).unwrap().warnings(), &w[..]);
+        w.iter().map(|w| w.to_string()).collect()
+    };
+    // A plate one particle thick.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.2, 0.1, 0.01]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("scene warning in bodies[0] ('plate').boxes[0]: 200 of its 200 particles")
+            && w[0].contains("a single layer of particles (one particle thick along z)")
+            && w[0].contains("refine particle_spacing (now 0.01 m) so that at least 5 particles span it (dp <= 0.002 m)"),
+        "{}",
+        w[0]
+    );
+    // A 2D strip one particle high, a 3D column.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0], "max": [0.2, 0.01]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert!(
+        w.len() == 1 && w[0].contains("a single row of particles (one particle thick along y)"),
+        "{w:?}"
+    );
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.2, 0.01, 0.01]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert!(
+        w.len() == 1
+            && w[0].contains("a single column of particles (one particle thick along y and z)"),
+        "{w:?}"
+    );
+    // A block with a fin one particle thick: the fin's box is named, the block is fine.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.1, 0.1, 0.1]},
+                           {"min": [0.1, 0, 0.05], "max": [0.3, 0.1, 0.06]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert!(
+        w.len() == 1 && w[0].contains("bodies[0] ('plate').boxes[1]: 190 of its 200 particles"),
+        "{w:?}"
+    );
+    // Three particles thick: no particle has a full neighbourhood (5 across at re = 2.1 dp).
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.2, 0.1, 0.03]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert!(
+        w.len() == 1
+            && w[0].starts_with(
+                "scene warning in bodies[0] ('plate'): no particle has the full neighbourhood"
+            )
+            && w[0].contains("(32 neighbours within re = 2.1 dp)")
+            && w[0].contains("along z it spans 3 particles")
+            && w[0].contains("(dp <= 0.006 m)"),
+        "{w:?}"
+    );
+    // Five across is enough.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.2, 0.1, 0.05]}]),
+        0.01,
+    );
+    assert_eq!(messages(&s), Vec::<String>::new());
+}
+
+#[test]
+fn the_paper_cases_and_test_scenes_have_no_warnings() {
+    // Case 2's end layers are one particle thick boxes, but bonded to the beam: no warning.
+    let case2 = case2_scene(0.025, ElasticModel::Corrected, None, Support::Face);
+    assert_eq!(case2.warnings(), vec![]);
+    for s in mps_solid::cases::paper_scenes() {
+        assert_eq!(s.warnings(), vec![], "{}", s.name);
+    }
+    for f in [
+        "tests/data/small2d.json",
+        "tests/data/small3d.json",
+        "scenes/cantilever_payload.json",
+    ] {
+        let s = Scene::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(f)).unwrap();
+        assert_eq!(s.warnings(), vec![], "{f}");
+    }
+}

@@ -167,6 +167,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             };
             let pb = progress(sc.end_time, &sc.name);
             let r = run_scene_with(&sc, RunOptions { energy }, |e| match e {
+                RunEvent::Warning(w) => pb.suspend(|| eprintln!("warning: {w}")),
                 RunEvent::Sample(t) => pb.set_position((t * 1e6) as u64),
             });
             pb.finish_and_clear();
@@ -416,6 +417,9 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     "--out {} is the scene file itself; choose another output",
                     out.display()
                 ));
+            }
+            for w in sc.warnings() {
+                eprintln!("warning: {w}");
             }
             mps_solid::fmi::pack::pack_fmu(&sc, &lib, &out)?;
             println!("wrote {}", out.display());

@@ -485,6 +485,11 @@ impl Instance {
             inst.scene.name,
             inst.table.vars.len()
         ));
+        // Under-resolved geometry: from the particles alone (the parameters change no geometry),
+        // so it is known here, before the model is built.
+        for w in inst.scene.warnings() {
+            inst.warn(w.to_string());
+        }
         Ok(inst)
     }
 

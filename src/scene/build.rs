@@ -1,6 +1,6 @@
 //! Builds a physics World from a validated Scene: particles from boxes, groups and load regions
 //! from regions, probes located at their nearest particle.
-use super::{axis_index, err, BodyVelocity, Region, Scene, SceneError};
+use super::{axis_index, err, BodyVelocity, Region, Scene, SceneError, SceneWarning};
 use crate::physics::boundary::GravityLaw;
 use crate::physics::dim::to3;
 use crate::physics::world::GroupInit;
@@ -21,17 +21,21 @@ where
 {
     pub world: World<D>,
     pub probes: Vec<ProbeAt<D>>,
+    /// Under-resolved geometry (see `scene::resolution`); the same as `Scene::warnings`.
+    pub warnings: Vec<SceneWarning>,
 }
 
 /// The particles of body k of a validated scene: the cell centres of its boxes, a particle
-/// closer than l0 / 4 to one of an earlier box dropped.
+/// closer than l0 / 4 to one of an earlier box dropped; and for each particle the index of the
+/// box it comes from.
 pub(crate) fn body_points<const D: usize>(
     scene: &Scene,
     k: usize,
-) -> Result<Vec<Vect<D>>, SceneError> {
+) -> Result<(Vec<Vect<D>>, Vec<u32>), SceneError> {
     let dp = scene.particle_spacing;
     let b = &scene.bodies[k];
     let mut pts: Vec<Vect<D>> = Vec::new();
+    let mut box_of: Vec<u32> = Vec::new();
     let cells: usize = b
         .boxes
         .iter()
@@ -45,6 +49,7 @@ pub(crate) fn body_points<const D: usize>(
         )
     };
     pts.try_reserve_exact(cells).map_err(oom)?;
+    box_of.try_reserve_exact(cells).map_err(oom)?;
     for (j, r) in b.boxes.iter().enumerate() {
         let n = scene.cell_counts(r, &format!("bodies[{k}].boxes[{j}]"))?;
         let first_new = pts.len();
@@ -62,10 +67,11 @@ pub(crate) fn body_points<const D: usize>(
             }
             if !taken {
                 pts.push(p);
+                box_of.push(j as u32);
             }
         }
     }
-    Ok(pts)
+    Ok((pts, box_of))
 }
 
 /// The angular quantity of D dimensions of a 3-array (2D: its z component), built from cross
@@ -157,8 +163,12 @@ where
         let mut bodies = Vec::new();
         let mut ranges = Vec::new();
         let mut count = 0usize;
+        let mut warnings = Vec::new();
         for (k, b) in scene.bodies.iter().enumerate() {
-            let pts = body_points::<D>(scene, k)?;
+            let (pts, box_of) = body_points::<D>(scene, k)?;
+            warnings.extend(super::resolution::body_warnings::<D>(
+                scene, k, &pts, &box_of,
+            ));
             let velocity = initial_velocity::<D>(scene, k, &pts)?;
             ranges.push(count..count + pts.len());
             count += pts.len();
@@ -251,7 +261,11 @@ where
                 particle,
             });
         }
-        Ok(Model { world, probes })
+        Ok(Model {
+            world,
+            probes,
+            warnings,
+        })
     }
 
     /// Displacement of probe k (m).

@@ -4,10 +4,12 @@
 mod build;
 pub mod limits;
 pub mod memory;
+pub mod resolution;
 pub mod velocity;
 
 pub use build::{Model, ProbeAt};
 use limits::num;
+pub use resolution::SceneWarning;
 pub use velocity::{
     AngularVelocity, BodyVelocity, ModeShape, ModeShapeProfile, Omega, TableProfile, VelocityField,
     VelocityProfile,

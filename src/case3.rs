@@ -2,7 +2,7 @@
 //! fractured surfaces. Scene builders for both variants (with and without contact detection
 //! between fractured surfaces) and a report of the event times.
 use crate::physics::{ContactOptions, ElasticModel, Material, SolverOptions};
-use crate::scene::{Body, Boundary, BoundaryKind, Gravity, Probe, Region, Scene};
+use crate::scene::{Body, BodyVelocity, Boundary, BoundaryKind, Gravity, Probe, Region, Scene};
 use crate::sim::Simulation;
 use serde::{Deserialize, Serialize};
 
@@ -135,7 +135,7 @@ pub fn case3_scene_with(
                     [cx - h, GAP, cz - h],
                     [cx + h, GAP + CUBE_SIDE, cz + h],
                 )],
-                velocity: Some(vec![0.0, -CUBE_SPEED, 0.0]),
+                velocity: Some(BodyVelocity::Uniform(vec![0.0, -CUBE_SPEED, 0.0])),
             },
             Body {
                 name: "block".into(),

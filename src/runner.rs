@@ -2,7 +2,7 @@
 //! deflection. Shared by the command line, the case reports and the benchmark.
 use crate::analysis::{dominant_frequency, peak};
 use crate::scene::limits::num;
-use crate::scene::{axis_index, Scene};
+use crate::scene::{axis_index, Scene, SceneWarning};
 use crate::sim::Simulation;
 use serde::Serialize;
 use std::time::Instant;
@@ -15,6 +15,56 @@ pub struct Series {
     pub time: Vec<f64>,
     /// `displacement[k][n]`: probe k at sample n (m).
     pub displacement: Vec<Vec<[f64; 3]>>,
+    /// The energies at each sample when the run was asked for them (`RunOptions::energy`),
+    /// else empty.
+    pub energy: Vec<Energies>,
+}
+
+/// The energies of the whole scene at one instant (J; per metre of depth in 2D).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Energies {
+    /// Kinetic energy of translation and particle rotation, 1/2 m v^2 + 1/2 I w^2 with the
+    /// velocities of the last step (symplectic Euler: they lag the positions by half a step, so
+    /// the sum oscillates by O(omega dt) around the conserved value).
+    pub kinetic: f64,
+    /// Elastic strain energy of the current positions.
+    pub strain: f64,
+    /// Contact potential energy of the current positions (0 without contact).
+    pub contact: f64,
+}
+
+impl Energies {
+    /// The energies of a simulation now (the strain energy is a serial pass over the bonds).
+    pub fn of(sim: &Simulation) -> Energies {
+        Energies {
+            kinetic: sim.kinetic_energy(),
+            strain: sim.strain_energy(),
+            contact: sim.contact_energy(),
+        }
+    }
+    /// kinetic + strain + contact (J): conserved by an undamped run without loads, gravity or
+    /// fracture (a broken bond releases its strain energy).
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.strain + self.contact
+    }
+}
+
+/// What a run records besides the probes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RunOptions {
+    /// The energies at every output sample (`Series::energy`). Costs a serial pass over the
+    /// bonds per sample (about one solver step on two cores).
+    pub energy: bool,
+}
+
+/// What a run reports while it runs.
+#[derive(Clone, Copy, Debug)]
+pub enum RunEvent<'a> {
+    /// The scene was built and will run; a warning of under-resolved geometry (before the
+    /// first step).
+    Warning(&'a SceneWarning),
+    /// An output sample at this time (s) was taken.
+    Sample(f64),
 }
 
 /// Result of a run; `error` is set when the solver stopped early (the series keeps what was
@@ -48,6 +98,8 @@ pub struct RunResult {
     /// Largest displacement component of the analysis probe over the run (m).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_m: Option<f64>,
+    /// Warnings of under-resolved geometry (`Scene::warnings`).
+    pub warnings: Vec<SceneWarning>,
     pub series: Series,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
@@ -108,6 +160,22 @@ pub fn check_finite(r: &RunResult) -> Result<(), String> {
     if let Some(p) = r.peak_m {
         bad("peak_m".into(), p)?;
     }
+    for (n, e) in r.series.energy.iter().enumerate() {
+        for (what, v) in [
+            ("kinetic", e.kinetic),
+            ("strain", e.strain),
+            ("contact", e.contact),
+        ] {
+            if !v.is_finite() {
+                return Err(format!(
+                    "non-finite result: {what} energy = {} at t = {} s (scene '{}')",
+                    num(v),
+                    num(r.series.time[n]),
+                    r.scene
+                ));
+            }
+        }
+    }
     for (k, series) in r.series.displacement.iter().enumerate() {
         for (n, u) in series.iter().enumerate() {
             if u.iter().any(|c| !c.is_finite()) {
@@ -126,9 +194,27 @@ pub fn check_finite(r: &RunResult) -> Result<(), String> {
 /// before the first step: a scene without a free particle, and a run that would take more than
 /// solver.max_steps steps. A run that produces a non-finite number is an error.
 pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunResult, String> {
+    run_scene_with(scene, RunOptions::default(), |e| {
+        if let RunEvent::Sample(t) = e {
+            on_sample(t)
+        }
+    })
+}
+
+/// [`run_scene`] with options; `on_event` hears of the scene's warnings once it is built and
+/// of every output sample.
+pub fn run_scene_with(
+    scene: &Scene,
+    opts: RunOptions,
+    mut on_event: impl FnMut(RunEvent),
+) -> Result<RunResult, String> {
     let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
     check_free_particles(&sim)?;
     sim.check_work(scene.end_time).map_err(|e| e.to_string())?;
+    // Reported once the run is sure to start (a refused scene gets its error alone).
+    for w in sim.warnings() {
+        on_event(RunEvent::Warning(w));
+    }
     let np = scene.probes.len();
     let mut series = Series {
         probes: scene.probes.iter().map(|p| p.name.clone()).collect(),
@@ -139,6 +225,9 @@ pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunRes
         series.time.push(sim.time());
         for k in 0..np {
             series.displacement[k].push(sim.probe_displacement(k));
+        }
+        if opts.energy {
+            series.energy.push(Energies::of(sim));
         }
     };
     sample(&sim, &mut series);
@@ -158,7 +247,7 @@ pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunRes
             break;
         }
         sample(&sim, &mut series);
-        on_sample(t);
+        on_event(RunEvent::Sample(t));
     }
     let wall = start.elapsed().as_secs_f64();
     let (mut frequency_hz, mut peak_m) = (None, None);
@@ -203,6 +292,7 @@ pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunRes
         strain_energy: sim.strain_energy(),
         frequency_hz,
         peak_m,
+        warnings: sim.warnings().to_vec(),
         series,
         error,
     };
@@ -233,6 +323,22 @@ pub fn series_csv(s: &Series, dimension: usize) -> String {
             }
         }
         out.push('\n');
+    }
+    out
+}
+
+/// The energy series as CSV: `time,kinetic_energy,strain_energy,contact_energy,total_energy`
+/// (s, J; J/m in 2D), one row per output sample.
+pub fn energy_csv(s: &Series) -> String {
+    let mut out = String::from("time,kinetic_energy,strain_energy,contact_energy,total_energy\n");
+    for (t, e) in s.time.iter().zip(&s.energy) {
+        out.push_str(&format!(
+            "{t:.9e},{:.9e},{:.9e},{:.9e},{:.9e}\n",
+            e.kinetic,
+            e.strain,
+            e.contact,
+            e.total()
+        ));
     }
     out
 }

@@ -5,7 +5,7 @@ use crate::physics::dim::{from3, to3};
 use crate::physics::world::WorldState;
 use crate::physics::SimError;
 use crate::scene::limits::num;
-use crate::scene::{Model, Scene, SceneError};
+use crate::scene::{Model, Scene, SceneError, SceneWarning};
 use serde::{Deserialize, Serialize};
 
 /// A built scene of dimension 2 or 3.
@@ -69,6 +69,10 @@ impl Simulation {
             }
         }
         Ok(sim)
+    }
+    /// Warnings of under-resolved geometry found while building (see `Scene::warnings`).
+    pub fn warnings(&self) -> &[SceneWarning] {
+        with!(self, m => &m.warnings)
     }
     pub fn dimension(&self) -> usize {
         with!(self, _m => if matches!(self, Simulation::D2(_)) { 2 } else { 3 })

@@ -21,7 +21,7 @@ fn cube(name: &str, min: [f64; 3], side: f64, v: [f64; 3]) -> Body {
             min: min.to_vec(),
             max: min.iter().map(|m| m + side).collect(),
         }],
-        velocity: Some(v.to_vec()),
+        velocity: Some(mps_solid::scene::BodyVelocity::Uniform(v.to_vec())),
     }
 }
 

@@ -33,7 +33,7 @@ fn undamped_cantilever_keeps_its_energy_over_100_periods() {
             name: "beam".into(),
             material: MAT,
             points: pts.clone(),
-            velocity: Vect::<2>::zeros(),
+            velocity: Vect::<2>::zeros().into(),
         }],
         vec![GroupInit {
             name: "clamp".into(),
@@ -103,7 +103,7 @@ fn collision(safety: f64) -> World<2> {
         name: name.into(),
         material: MAT,
         points: pts,
-        velocity: Vector2::new(v, 0.0),
+        velocity: Vector2::new(v, 0.0).into(),
     };
     World::new(
         L0,

@@ -1763,3 +1763,111 @@ fn coupling_outputs_velocity_is_the_rate_of_displacement() {
         last[0]
     );
 }
+
+#[test]
+fn instantiation_logs_under_resolved_geometry() {
+    let _g = shared();
+    let plate = Scene::from_json(
+        &serde_json::json!({
+            "name": "plate", "dimension": 3, "particle_spacing": 0.01,
+            "bodies": [{ "name": "plate",
+                         "material": { "density": 1000.0, "young": 1e6, "poisson": 0.3 },
+                         "boxes": [{ "min": [0, 0, 0], "max": [0.2, 0.1, 0.01] }] }],
+            "end_time": 0.01, "output_interval": 0.001
+        })
+        .to_string(),
+    )
+    .unwrap();
+    let u = Unpacked::from_scene(plate, "warn");
+    let i = Inst::new(&u);
+    let warnings: Vec<_> = i
+        .log
+        .0
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|m| m.0 == 1)
+        .cloned()
+        .collect();
+    assert_eq!(warnings.len(), 1, "{}", i.log.all());
+    let (_, cat, msg, name) = &warnings[0];
+    assert_eq!((cat.as_str(), name.as_str()), ("logStatusWarning", "inst"));
+    assert!(
+        msg.starts_with("scene warning in bodies[0] ('plate').boxes[0]:")
+            && msg.contains("one particle thick along z")
+            && msg.contains("refine particle_spacing"),
+        "{msg}"
+    );
+    // Case 2 is resolved: nothing logged at instantiation but the (debug) events.
+    let case2 = Scene::load(&root().join("scenes/case2_beam.json")).unwrap();
+    let u = Unpacked::from_scene(case2, "warn");
+    let i = Inst::new(&u);
+    assert!(
+        i.log.0.lock().unwrap().iter().all(|m| m.0 != 1),
+        "{}",
+        i.log.all()
+    );
+}
+
+#[test]
+fn fmu_state_of_a_scene_with_a_velocity_field_roundtrips() {
+    // The scene is part of the state (bincode): the velocity field, whose JSON is an untagged
+    // array-or-object, must encode and decode there too.
+    let _g = shared();
+    let a = api();
+    let mut v: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root().join("tests/data/small2d.json")).unwrap(),
+    )
+    .unwrap();
+    v["bodies"][0]["velocity"] = serde_json::json!({
+        "linear": [0.01, 0.0],
+        "angular": { "omega": 0.5, "center": [0.2, 0.0] },
+        "profiles": [
+            { "mode_shape": { "shape": "clamped_free_1", "axis": "x", "component": "y",
+                              "x0": 0.0, "length": 0.4, "amplitude": 0.05 } },
+            { "table": { "axis": "y", "component": "x", "points": [[-0.05, 0.0], [0.05, 0.02]] } }
+        ]
+    });
+    let u = Unpacked::from_scene(Scene::from_json(&v.to_string()).unwrap(), "vstate");
+    let outs = real_outputs(&u);
+    let i = Inst::new(&u);
+    i.init(None);
+    let h = 0.002;
+    for k in 0..5 {
+        assert_eq!(i.step(k as f64 * h, h), OK);
+    }
+    let run = |inst: &Inst| -> Vec<u64> {
+        let mut r = Vec::new();
+        for k in 5..10 {
+            assert_eq!(inst.step(k as f64 * h, h), OK);
+            r.extend(inst.real(&outs).iter().map(|x| x.to_bits()));
+        }
+        r
+    };
+    unsafe {
+        let mut st: *mut c_void = null_mut();
+        assert_eq!((a.fmi2GetFMUstate)(i.c, &mut st), OK);
+        let mut size = 0usize;
+        assert_eq!((a.fmi2SerializedFMUstateSize)(i.c, st, &mut size), OK);
+        let mut buf = vec![0 as c_char; size];
+        assert_eq!(
+            (a.fmi2SerializeFMUstate)(i.c, st, buf.as_mut_ptr(), size),
+            OK
+        );
+        let first = run(&i);
+        assert_eq!((a.fmi2SetFMUstate)(i.c, st), OK, "{}", i.log.all());
+        assert_eq!(run(&i), first, "restored run differs");
+        assert_eq!((a.fmi2FreeFMUstate)(i.c, &mut st), OK);
+        let j = Inst::new(&u);
+        let mut st2: *mut c_void = null_mut();
+        assert_eq!(
+            (a.fmi2DeSerializeFMUstate)(j.c, buf.as_ptr(), size, &mut st2),
+            OK,
+            "{}",
+            j.log.all()
+        );
+        assert_eq!((a.fmi2SetFMUstate)(j.c, st2), OK, "{}", j.log.all());
+        assert_eq!((a.fmi2FreeFMUstate)(j.c, &mut st2), OK);
+        assert_eq!(run(&j), first, "deserialised run differs");
+    }
+}

@@ -71,7 +71,7 @@ fn bar_damped(
         name: "bar".into(),
         material: BAR,
         points: pts,
-        velocity: Vect::<3>::zeros(),
+        velocity: Vect::<3>::zeros().into(),
     };
     let w = World::new(
         L0,

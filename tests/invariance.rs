@@ -60,7 +60,7 @@ where
             name: "block".into(),
             material: STEEL_LIKE,
             points,
-            velocity: Vect::<D>::zeros(),
+            velocity: Vect::<D>::zeros().into(),
         }],
         groups,
         vec![],

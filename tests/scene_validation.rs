@@ -209,6 +209,170 @@ fn each_bad_field_is_named() {
             Box::new(|v| v["boundaries"][0]["name"] = "a\nb".into()),
             "boundaries[0].name",
         ),
+        // Issue 7: the initial velocity field, each part and each number.
+        (
+            "velocity with 2 components in 3D",
+            Box::new(|v| v["bodies"][0]["velocity"] = serde_json::json!([1.0, 2.0])),
+            "bodies[0] ('beam').velocity: must have 3 components, got 2",
+        ),
+        (
+            "velocity neither array nor object",
+            Box::new(|v| v["bodies"][0]["velocity"] = "fast".into()),
+            "bodies[0].velocity: invalid type: string \"fast\", expected an initial velocity",
+        ),
+        (
+            "unknown field of a velocity field",
+            Box::new(|v| v["bodies"][0]["velocity"] = serde_json::json!({"lineer": [1, 0, 0]})),
+            "unknown field `lineer`, expected one of `linear`, `angular`, `profiles`",
+        ),
+        (
+            "linear with 2 components",
+            Box::new(|v| v["bodies"][0]["velocity"] = serde_json::json!({"linear": [1, 0]})),
+            "bodies[0] ('beam').velocity.linear: must have 3 components",
+        ),
+        (
+            "scalar omega in 3D",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] =
+                    serde_json::json!({"angular": {"omega": 2.0, "center": [0, 0, 0]}})
+            }),
+            "bodies[0] ('beam').velocity.angular.omega: a 3D scene needs the angular velocity as a vector",
+        ),
+        (
+            "omega with 2 components in 3D",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] =
+                    serde_json::json!({"angular": {"omega": [0, 2.0], "center": [0, 0, 0]}})
+            }),
+            "velocity.angular.omega: must have 3 components, got 2",
+        ),
+        (
+            "omega as text",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] =
+                    serde_json::json!({"angular": {"omega": "fast", "center": [0, 0, 0]}})
+            }),
+            "bodies[0].velocity.angular.omega: invalid type: string \"fast\", expected an angular velocity (rad/s)",
+        ),
+        (
+            "center with 2 components",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] =
+                    serde_json::json!({"angular": {"omega": [0, 0, 1], "center": [0, 0]}})
+            }),
+            "velocity.angular.center: must have 3 components",
+        ),
+        (
+            "angular without center",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"angular": {"omega": [0, 0, 1]}})
+            }),
+            "bodies[0].velocity.angular: missing field `center`",
+        ),
+        (
+            "unknown profile",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"sine": {}}]})
+            }),
+            "unknown variant `sine`, expected `table` or `mode_shape`",
+        ),
+        (
+            "table along a bad axis",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"table": {
+                    "axis": "w", "component": "z", "points": [[0, 0]]}}]})
+            }),
+            "velocity.profiles[0].table.axis: 'w' is not an axis of a 3D scene",
+        ),
+        (
+            "table of a bad component",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"table": {
+                    "axis": "x", "component": "vz", "points": [[0, 0]]}}]})
+            }),
+            "velocity.profiles[0].table.component: 'vz' is not an axis",
+        ),
+        (
+            "empty table",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"table": {
+                    "axis": "x", "component": "z", "points": []}}]})
+            }),
+            "velocity.profiles[0].table.points: needs at least one [s, v] pair",
+        ),
+        (
+            "unsorted table",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [
+                    {"table": {"axis": "x", "component": "z", "points": [[0, 0], [1, 1]]}},
+                    {"table": {"axis": "x", "component": "z",
+                               "points": [[0, 0], [0.5, 1], [0.5, 2]]}}]})
+            }),
+            "velocity.profiles[1].table.points[2]: s = 0.5 m does not follow s = 0.5 m",
+        ),
+        (
+            "table point of three numbers",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"table": {
+                    "axis": "x", "component": "z", "points": [[0, 0, 1]]}}]})
+            }),
+            // serde_json's words for an array too long; the field is named.
+            "scene error in bodies[0].velocity.profiles[0].table.points[0]: trailing characters",
+        ),
+        (
+            "mode shape of length 0",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"mode_shape": {
+                    "shape": "clamped_free_1", "axis": "x", "component": "z",
+                    "x0": 0, "length": 0, "amplitude": 0.1}}]})
+            }),
+            "velocity.profiles[0].mode_shape.length: must be a positive finite length (m), got 0",
+        ),
+        (
+            "mode shape of negative length",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"mode_shape": {
+                    "shape": "clamped_free_1", "axis": "x", "component": "z",
+                    "x0": 0, "length": -1, "amplitude": 0.1}}]})
+            }),
+            "mode_shape.length: must be a positive finite length (m), got -1",
+        ),
+        (
+            "mode shape along its own axis",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"mode_shape": {
+                    "shape": "clamped_free_1", "axis": "x", "component": "x",
+                    "x0": 0, "length": 1, "amplitude": 0.1}}]})
+            }),
+            "velocity.profiles[0].mode_shape.component: 'x' is the beam's axis",
+        ),
+        (
+            "unknown mode shape",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"mode_shape": {
+                    "shape": "clamped_free_2", "axis": "x", "component": "z",
+                    "x0": 0, "length": 1, "amplitude": 0.1}}]})
+            }),
+            "unknown variant `clamped_free_2`, expected `clamped_free_1`",
+        ),
+        (
+            "mode shape without amplitude",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"mode_shape": {
+                    "shape": "clamped_free_1", "axis": "x", "component": "z",
+                    "x0": 0, "length": 1}}]})
+            }),
+            "bodies[0].velocity.profiles[0].mode_shape: missing field `amplitude`",
+        ),
+        (
+            "parts that overflow when summed",
+            Box::new(|v| {
+                v["bodies"][0]["velocity"] = serde_json::json!({"linear": [0, 0, 1.7e308],
+                    "profiles": [{"table": {"axis": "x", "component": "z",
+                                            "points": [[0, 1.7e308]]}}]})
+            }),
+            "bodies[0] ('beam').velocity: the velocity at the particle at",
+        ),
     ];
     for (what, edit, needle) in cases {
         let mut v = base();
@@ -313,4 +477,230 @@ fn load_region_names_are_unique_and_distinct_from_probe_names() {
         e.contains("loads[1]") && e.contains("duplicate load region name"),
         "{e}"
     );
+}
+
+#[test]
+fn non_finite_velocity_numbers_are_named() {
+    // JSON has no NaN or infinity; a scene built in code (or read from TOML's nan/inf) can.
+    use mps_solid::scene::{
+        AngularVelocity, BodyVelocity, ModeShape, ModeShapeProfile, Omega, TableProfile,
+        VelocityField, VelocityProfile,
+    };
+    let base = case2_scene(0.025, ElasticModel::Corrected, None, Support::Face);
+    let mode = |x0: f64, length: f64, amplitude: f64| {
+        VelocityProfile::ModeShape(ModeShapeProfile {
+            shape: ModeShape::ClampedFree1,
+            axis: "x".into(),
+            component: "z".into(),
+            x0,
+            length,
+            amplitude,
+        })
+    };
+    let field = |f: VelocityField| Some(BodyVelocity::Field(f));
+    let cases: Vec<(Option<BodyVelocity>, &str)> = vec![
+        (
+            Some(BodyVelocity::Uniform(vec![0.0, f64::NAN, 0.0])),
+            "bodies[0] ('beam').velocity: component NaN is not finite",
+        ),
+        (
+            field(VelocityField {
+                linear: Some(vec![f64::INFINITY, 0.0, 0.0]),
+                ..Default::default()
+            }),
+            ".velocity.linear: component inf is not finite",
+        ),
+        (
+            field(VelocityField {
+                angular: Some(AngularVelocity {
+                    omega: Omega::Vector(vec![0.0, f64::NAN, 0.0]),
+                    center: vec![0.0; 3],
+                }),
+                ..Default::default()
+            }),
+            ".velocity.angular.omega: component NaN is not finite",
+        ),
+        (
+            field(VelocityField {
+                angular: Some(AngularVelocity {
+                    omega: Omega::Vector(vec![0.0, 1.0, 0.0]),
+                    center: vec![0.0, f64::NEG_INFINITY, 0.0],
+                }),
+                ..Default::default()
+            }),
+            ".velocity.angular.center: component -inf is not finite",
+        ),
+        (
+            field(VelocityField {
+                profiles: vec![VelocityProfile::Table(TableProfile {
+                    axis: "x".into(),
+                    component: "y".into(),
+                    points: vec![[0.0, 1.0], [f64::NAN, 2.0]],
+                })],
+                ..Default::default()
+            }),
+            ".velocity.profiles[0].table.points[1][0]: must be a finite number, got NaN",
+        ),
+        (
+            field(VelocityField {
+                profiles: vec![mode(f64::NAN, 1.0, 0.1)],
+                ..Default::default()
+            }),
+            ".velocity.profiles[0].mode_shape.x0: must be a finite number",
+        ),
+        (
+            field(VelocityField {
+                profiles: vec![mode(0.0, f64::INFINITY, 0.1)],
+                ..Default::default()
+            }),
+            ".velocity.profiles[0].mode_shape.length: must be a positive finite length",
+        ),
+        (
+            field(VelocityField {
+                profiles: vec![mode(0.0, 1.0, f64::NAN)],
+                ..Default::default()
+            }),
+            ".velocity.profiles[0].mode_shape.amplitude: must be a finite number, got NaN",
+        ),
+    ];
+    for (v, needle) in cases {
+        let mut s = base.clone();
+        s.bodies[0].velocity = v;
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains(needle), "'{e}' does not mention '{needle}'");
+    }
+}
+
+#[test]
+fn a_2d_angular_velocity_is_a_number() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/small2d.json"
+    ))
+    .unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["bodies"][0]["velocity"] =
+        serde_json::json!({"angular": {"omega": [0, 0, 1], "center": [0, 0]}});
+    let e = error_of(v.clone());
+    assert!(
+        e.contains("bodies[0] ('strip').velocity.angular.omega: a 2D scene turns about z"),
+        "{e}"
+    );
+    v["bodies"][0]["velocity"] = serde_json::json!({"profiles": [{"table": {
+        "axis": "z", "component": "y", "points": [[0, 0]]}}]});
+    let e = error_of(v.clone());
+    assert!(
+        e.contains("velocity.profiles[0].table.axis: 'z' is not an axis of a 2D scene (x or y)"),
+        "{e}"
+    );
+    v["bodies"][0]["velocity"] = serde_json::json!({"angular": {"omega": 3, "center": [0, 0]}});
+    Simulation::new(&Scene::from_json(&v.to_string()).unwrap()).unwrap();
+}
+
+/// A scene of one body made of `boxes` (2D or 3D by the boxes' size), no supports.
+fn one_body(boxes: serde_json::Value, dp: f64) -> Scene {
+    let d = boxes[0]["min"].as_array().unwrap().len();
+    let v = serde_json::json!({
+        "name": "plate", "dimension": d, "particle_spacing": dp,
+        "bodies": [{ "name": "plate",
+                     "material": { "density": 1000.0, "young": 1e6, "poisson": 0.3 },
+                     "boxes": boxes }],
+        "end_time": 0.01, "output_interval": 0.001
+    });
+    Scene::from_json(&v.to_string()).unwrap()
+}
+
+#[test]
+fn under_resolved_geometry_is_warned_with_its_field() {
+    let messages = |s: &Scene| -> Vec<String> {
+        let w = s.warnings();
+        // The same warnings come with the built simulation.
+        assert_eq!(Simulation::new(s).unwrap().warnings(), &w[..]);
+        w.iter().map(|w| w.to_string()).collect()
+    };
+    // A plate one particle thick.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.2, 0.1, 0.01]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("scene warning in bodies[0] ('plate').boxes[0]: 200 of its 200 particles")
+            && w[0].contains("a single layer of particles (one particle thick along z)")
+            && w[0].contains("refine particle_spacing (now 0.01 m) so that at least 5 particles span it (dp <= 0.002 m)"),
+        "{}",
+        w[0]
+    );
+    // A 2D strip one particle high, a 3D column.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0], "max": [0.2, 0.01]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert!(
+        w.len() == 1 && w[0].contains("a single row of particles (one particle thick along y)"),
+        "{w:?}"
+    );
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.2, 0.01, 0.01]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert!(
+        w.len() == 1
+            && w[0].contains("a single column of particles (one particle thick along y and z)"),
+        "{w:?}"
+    );
+    // A block with a fin one particle thick: the fin's box is named, the block is fine.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.1, 0.1, 0.1]},
+                           {"min": [0.1, 0, 0.05], "max": [0.3, 0.1, 0.06]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert!(
+        w.len() == 1 && w[0].contains("bodies[0] ('plate').boxes[1]: 190 of its 200 particles"),
+        "{w:?}"
+    );
+    // Three particles thick: no particle has a full neighbourhood (5 across at re = 2.1 dp).
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.2, 0.1, 0.03]}]),
+        0.01,
+    );
+    let w = messages(&s);
+    assert!(
+        w.len() == 1
+            && w[0].starts_with(
+                "scene warning in bodies[0] ('plate'): no particle has the full neighbourhood"
+            )
+            && w[0].contains("(32 neighbours within re = 2.1 dp)")
+            && w[0].contains("along z it spans 3 particles")
+            && w[0].contains("(dp <= 0.006 m)"),
+        "{w:?}"
+    );
+    // Five across is enough.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0, 0], "max": [0.2, 0.1, 0.05]}]),
+        0.01,
+    );
+    assert_eq!(messages(&s), Vec::<String>::new());
+}
+
+#[test]
+fn the_paper_cases_and_test_scenes_have_no_warnings() {
+    // Case 2's end layers are one particle thick boxes, but bonded to the beam: no warning.
+    let case2 = case2_scene(0.025, ElasticModel::Corrected, None, Support::Face);
+    assert_eq!(case2.warnings(), vec![]);
+    for s in mps_solid::cases::paper_scenes() {
+        assert_eq!(s.warnings(), vec![], "{}", s.name);
+    }
+    for f in [
+        "tests/data/small2d.json",
+        "tests/data/small3d.json",
+        "scenes/cantilever_payload.json",
+    ] {
+        let s = Scene::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(f)).unwrap();
+        assert_eq!(s.warnings(), vec![], "{f}");
+    }
 }

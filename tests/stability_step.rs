@@ -32,7 +32,7 @@ fn cantilever(nx: usize, opts: SolverOptions) -> World<3> {
             name: "beam".into(),
             material: MAT,
             points: pts,
-            velocity: Vect::<3>::zeros(),
+            velocity: Vect::<3>::zeros().into(),
         }],
         vec![GroupInit {
             name: "clamp".into(),
@@ -156,7 +156,7 @@ where
                 poisson: 0.3,
             },
             points: block::<D>(n, L0),
-            velocity: v,
+            velocity: v.into(),
         }],
         Vec::<GroupInit>::new(),
         vec![],

@@ -5,7 +5,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mps_solid::cases::{case1_scene, case2_scene, Support};
 use mps_solid::physics::ElasticModel;
 use mps_solid::report;
-use mps_solid::runner::{run_scene, series_csv};
+use mps_solid::runner::{energy_csv, run_scene_with, series_csv, RunEvent, RunOptions};
 use mps_solid::scene::limits::num;
 use mps_solid::Scene;
 use std::path::PathBuf;
@@ -46,9 +46,13 @@ enum Cmd {
     /// Run a scene file (JSON or TOML): probe series as CSV, a summary, optionally JSON.
     Run {
         scene: PathBuf,
-        /// Directory for probes.csv and summary.json.
+        /// Directory for probes.csv and summary.json (and energy.csv).
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Also write energy.csv: kinetic, strain and contact energy and their sum at every
+        /// output sample (a serial pass over the bonds per sample).
+        #[arg(long)]
+        energy: bool,
         /// Print the result (including the series) as JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -141,29 +145,50 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> Result<ExitCode, String> {
     match cli.cmd {
-        Cmd::Run { scene, out, json } => {
+        Cmd::Run {
+            scene,
+            out,
+            energy,
+            json,
+        } => {
             let sc = Scene::load(&scene).map_err(|e| e.to_string())?;
             // The output files are opened before the run, so an unusable --out fails now.
             std::fs::create_dir_all(&out)
                 .map_err(|e| format!("cannot create the directory {}: {e}", out.display()))?;
             let csv = out.join("probes.csv");
             let summary_path = out.join("summary.json");
+            let energy_path = out.join("energy.csv");
             let open = |p: &std::path::Path| {
                 std::fs::File::create(p).map_err(|e| format!("cannot write {}: {e}", p.display()))
             };
             let (mut csv_file, mut summary_file) = (open(&csv)?, open(&summary_path)?);
+            let mut energy_file = if energy {
+                Some(open(&energy_path)?)
+            } else {
+                None
+            };
             let pb = progress(sc.end_time, &sc.name);
-            let r = run_scene(&sc, |t| pb.set_position((t * 1e6) as u64));
+            let r = run_scene_with(&sc, RunOptions { energy }, |e| match e {
+                RunEvent::Warning(w) => pb.suspend(|| eprintln!("warning: {w}")),
+                RunEvent::Sample(t) => pb.set_position((t * 1e6) as u64),
+            });
             pb.finish_and_clear();
             let r = r.inspect_err(|_| {
                 // Leave no empty output files behind a refused run.
                 let _ = std::fs::remove_file(&csv);
                 let _ = std::fs::remove_file(&summary_path);
+                if energy {
+                    let _ = std::fs::remove_file(&energy_path);
+                }
             })?;
             use std::io::Write;
             csv_file
                 .write_all(series_csv(&r.series, r.dimension).as_bytes())
                 .map_err(|e| format!("cannot write {}: {e}", csv.display()))?;
+            if let Some(f) = &mut energy_file {
+                f.write_all(energy_csv(&r.series).as_bytes())
+                    .map_err(|e| format!("cannot write {}: {e}", energy_path.display()))?;
+            }
             let mut summary = serde_json::to_value(&r).expect("serialisable");
             summary.as_object_mut().expect("object").remove("series");
             summary_file
@@ -186,6 +211,9 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     println!("  frequency {f:.4} Hz, peak {p:.6e} m");
                 }
                 println!("  series written to {}", csv.display());
+                if energy {
+                    println!("  energies written to {}", energy_path.display());
+                }
             }
             if let Some(e) = &r.error {
                 eprintln!("error: the run stopped early: {e}");
@@ -391,6 +419,9 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     "--out {} is the scene file itself; choose another output",
                     out.display()
                 ));
+            }
+            for w in sc.warnings() {
+                eprintln!("warning: {w}");
             }
             mps_solid::fmi::pack::pack_fmu(&sc, &lib, &out)?;
             println!("wrote {}", out.display());

@@ -218,9 +218,10 @@ pub struct FmuState {
     sim: SimState,
 }
 
-/// Magic and version of serialised FMU states.
+/// Magic and version of serialised FMU states. Version 3: a body's initial velocity is a
+/// tagged enum (uniform or field) in the state's scene.
 const STATE_MAGIC: &[u8; 8] = b"MPSFMUST";
-const STATE_VERSION: u32 = 2;
+const STATE_VERSION: u32 = 3;
 /// Largest serialised state accepted (bytes): bounds the allocations of a decoded state.
 const MAX_STATE_BYTES: u64 = 1 << 34;
 
@@ -484,6 +485,11 @@ impl Instance {
             inst.scene.name,
             inst.table.vars.len()
         ));
+        // Under-resolved geometry: from the particles alone (the parameters change no geometry),
+        // so it is known here, before the model is built.
+        for w in inst.scene.warnings() {
+            inst.warn(w.to_string());
+        }
         Ok(inst)
     }
 

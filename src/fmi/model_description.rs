@@ -279,7 +279,7 @@ fn model_description_xml_dated(scene: &Scene, date: Option<&str>) -> String {
             scene.bodies[b]
                 .velocity
                 .as_ref()
-                .is_some_and(|vel| vel.iter().any(|c| *c != 0.0))
+                .is_some_and(|vel| !vel.is_zero())
         };
         let depends = |p: Quantity| match (v.quantity, p) {
             (Quantity::KineticEnergy, Quantity::Density(b)) => moving(b),

@@ -34,4 +34,4 @@ macro_rules! par_iter_mut {
 
 pub use dim::{Dim, Mat, Space, Vect};
 pub use params::{BondStrain, ContactOptions, ElasticModel, Material, SolverOptions};
-pub use world::{BodyInit, SimError, World};
+pub use world::{BodyInit, InitialVelocity, SimError, World};

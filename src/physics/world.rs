@@ -92,11 +92,44 @@ pub const OMEGA_MARGIN: f64 = 0.03;
 
 /// A body to create: its material, particle positions and initial velocity.
 #[derive(Clone, Debug)]
-pub struct BodyInit<const D: usize> {
+pub struct BodyInit<const D: usize>
+where
+    Space: Dim<D>,
+{
     pub name: String,
     pub material: Material,
     pub points: Vec<Vect<D>>,
-    pub velocity: Vect<D>,
+    pub velocity: InitialVelocity<D>,
+}
+
+/// Initial velocity of the particles of a body. Particles of a boundary group start with zero
+/// velocity along the group's held axes, and with zero angular velocity when the group holds
+/// rotation, whatever is given here.
+#[derive(Clone, Debug)]
+pub enum InitialVelocity<const D: usize>
+where
+    Space: Dim<D>,
+{
+    /// Every particle moves with this velocity (m/s) and does not spin.
+    Uniform(Vect<D>),
+    /// One velocity (m/s) and one angular velocity (rad/s) per point, in the order of
+    /// `BodyInit::points`. The angular velocities are kept only by operators with particle
+    /// rotations (the paper's); the corrected operator has no rotational degree of freedom (no
+    /// moments, so a spin given to its particles would stay constant and only add a constant to
+    /// the kinetic energy), and its particles start with zero angular velocity.
+    PerParticle {
+        v: Vec<Vect<D>>,
+        w: Vec<<Space as Dim<D>>::Ang>,
+    },
+}
+
+impl<const D: usize> From<Vect<D>> for InitialVelocity<D>
+where
+    Space: Dim<D>,
+{
+    fn from(v: Vect<D>) -> Self {
+        InitialVelocity::Uniform(v)
+    }
 }
 
 /// A boundary group to create (member indices are global particle indices).
@@ -195,6 +228,30 @@ where
         };
         for (b, body) in bodies.iter().enumerate() {
             check_resolution(b, &body.name, &body.points, l0)?;
+            if let InitialVelocity::PerParticle { v, w } = &body.velocity {
+                if v.len() != body.points.len() || w.len() != body.points.len() {
+                    return Err(SimError::Invalid(format!(
+                        "body '{}' (bodies[{b}]) has {} points but {} initial velocities and {} angular velocities",
+                        body.name,
+                        body.points.len(),
+                        v.len(),
+                        w.len()
+                    )));
+                }
+            }
+            let finite = match &body.velocity {
+                InitialVelocity::Uniform(v) => v.iter().all(|c| c.is_finite()),
+                InitialVelocity::PerParticle { v, w } => {
+                    v.iter().all(|v| v.iter().all(|c| c.is_finite()))
+                        && w.iter().all(<Space as Dim<D>>::ang_finite)
+                }
+            };
+            if !finite {
+                return Err(SimError::Invalid(format!(
+                    "body '{}' (bodies[{b}]): an initial velocity is not finite",
+                    body.name
+                )));
+            }
         }
         let total: usize = bodies.iter().map(|b| b.points.len()).sum();
         let oom = |e: std::collections::TryReserveError| {
@@ -213,15 +270,29 @@ where
         p.inertia.try_reserve_exact(total).map_err(oom)?;
         p.fix.try_reserve_exact(total).map_err(oom)?;
         let volume = l0.powi(D as i32);
+        // Operators with particle rotations take the given angular velocities (see
+        // InitialVelocity::PerParticle).
+        let rotational = options.model != super::params::ElasticModel::Corrected;
         for (b, body) in bodies.iter().enumerate() {
             let m = body.material.density * volume;
-            for pt in &body.points {
+            for (k, pt) in body.points.iter().enumerate() {
+                let (v, w) = match &body.velocity {
+                    InitialVelocity::Uniform(v) => (*v, <Space as Dim<D>>::ang_zero()),
+                    InitialVelocity::PerParticle { v, w } => (
+                        v[k],
+                        if rotational {
+                            w[k]
+                        } else {
+                            <Space as Dim<D>>::ang_zero()
+                        },
+                    ),
+                };
                 p.x0.push(*pt);
                 p.u.push(Vect::<D>::zeros());
                 p.x.push(*pt);
-                p.v.push(body.velocity);
+                p.v.push(v);
                 p.q.push(<Space as Dim<D>>::identity());
-                p.w.push(<Space as Dim<D>>::ang_zero());
+                p.w.push(w);
                 p.body.push(b as u32);
                 p.mass.push(m);
                 p.inertia.push(<Space as Dim<D>>::particle_inertia(m, l0));
@@ -251,13 +322,17 @@ where
                     )));
                 }
                 group_of[i] = gi as u32;
-                for (held, bit) in g.axes.iter().zip(FIX_AXIS).take(D) {
+                // A held axis starts at rest (its motion law has no rate at t = 0), as does a
+                // held rotation.
+                for (k, (held, bit)) in g.axes.iter().zip(FIX_AXIS).take(D).enumerate() {
                     if *held {
                         p.fix[i] |= bit;
+                        p.v[i][k] = 0.0;
                     }
                 }
                 if g.fix_rotation {
                     p.fix[i] |= FIX_ROT;
+                    p.w[i] = <Space as Dim<D>>::ang_zero();
                 }
             }
             gs.push(BoundaryGroup {

@@ -1,9 +1,10 @@
 //! Builds a physics World from a validated Scene: particles from boxes, groups and load regions
 //! from regions, probes located at their nearest particle.
-use super::{axis_index, err, Region, Scene, SceneError};
+use super::{axis_index, err, BodyVelocity, Region, Scene, SceneError, SceneWarning};
 use crate::physics::boundary::GravityLaw;
+use crate::physics::dim::to3;
 use crate::physics::world::GroupInit;
-use crate::physics::{BodyInit, Dim, Space, Vect, World};
+use crate::physics::{BodyInit, Dim, InitialVelocity, Space, Vect, World};
 
 /// A probe located in the built world.
 #[derive(Clone, Debug)]
@@ -20,6 +21,123 @@ where
 {
     pub world: World<D>,
     pub probes: Vec<ProbeAt<D>>,
+    /// Under-resolved geometry (see `scene::resolution`); the same as `Scene::warnings`.
+    pub warnings: Vec<SceneWarning>,
+}
+
+/// The particles of body k of a validated scene: the cell centres of its boxes, a particle
+/// closer than l0 / 4 to one of an earlier box dropped; and for each particle the index of the
+/// box it comes from.
+pub(crate) fn body_points<const D: usize>(
+    scene: &Scene,
+    k: usize,
+) -> Result<(Vec<Vect<D>>, Vec<u32>), SceneError> {
+    let dp = scene.particle_spacing;
+    let b = &scene.bodies[k];
+    let mut pts: Vec<Vect<D>> = Vec::new();
+    let mut box_of: Vec<u32> = Vec::new();
+    let cells: usize = b
+        .boxes
+        .iter()
+        .filter_map(|r| scene.cell_counts(r, "").ok())
+        .map(|n| n.iter().product::<usize>())
+        .sum();
+    let oom = |e: std::collections::TryReserveError| {
+        err(
+            format!("{}.boxes", super::body_field(k, b)),
+            format!("cannot allocate the {cells} particles of the body: {e}"),
+        )
+    };
+    pts.try_reserve_exact(cells).map_err(oom)?;
+    box_of.try_reserve_exact(cells).map_err(oom)?;
+    for (j, r) in b.boxes.iter().enumerate() {
+        let n = scene.cell_counts(r, &format!("bodies[{k}].boxes[{j}]"))?;
+        let first_new = pts.len();
+        let grid = (j > 0).then(|| crate::physics::grid::CellGrid::build(&pts, None, dp));
+        for code in 0..n.iter().product::<usize>() {
+            let mut c = code;
+            let mut p = Vect::<D>::zeros();
+            for a in 0..D {
+                p[a] = r.min[a] + ((c % n[a]) as f64 + 0.5) * dp;
+                c /= n[a];
+            }
+            let mut taken = false;
+            if let Some(g) = &grid {
+                g.for_each_near(&pts[..first_new], &p, 0.25 * dp, |_| taken = true);
+            }
+            if !taken {
+                pts.push(p);
+                box_of.push(j as u32);
+            }
+        }
+    }
+    Ok((pts, box_of))
+}
+
+/// The angular quantity of D dimensions of a 3-array (2D: its z component), built from cross
+/// products of unit vectors (2D: e_x x e_y = 1 about z; 3D: e_y x e_z = e_x and cyclic).
+fn ang_from3<const D: usize>(w: [f64; 3]) -> <Space as Dim<D>>::Ang
+where
+    Space: Dim<D>,
+{
+    let e = |k: usize| Vect::<D>::from_fn(|i, _| if i == k { 1.0 } else { 0.0 });
+    let unit = |k: usize| <Space as Dim<D>>::cross(&e((k + 1) % 3), &e((k + 2) % 3));
+    if D == 2 {
+        <Space as Dim<D>>::ang_scale(<Space as Dim<D>>::cross(&e(0), &e(1)), w[2])
+    } else {
+        (0..3).fold(<Space as Dim<D>>::ang_zero(), |acc, k| {
+            <Space as Dim<D>>::ang_add(acc, <Space as Dim<D>>::ang_scale(unit(k), w[k]))
+        })
+    }
+}
+
+/// The initial velocity of body k's particles `pts`: uniform for the array form, else the
+/// field evaluated at each reference position. A value that is not finite (a field whose
+/// parts overflow) is an error naming the body's velocity.
+fn initial_velocity<const D: usize>(
+    scene: &Scene,
+    k: usize,
+    pts: &[Vect<D>],
+) -> Result<InitialVelocity<D>, SceneError>
+where
+    Space: Dim<D>,
+{
+    let b = &scene.bodies[k];
+    let field = match &b.velocity {
+        None => return Ok(InitialVelocity::Uniform(Vect::<D>::zeros())),
+        Some(BodyVelocity::Uniform(u)) => return Ok(InitialVelocity::Uniform(vect::<D>(u))),
+        Some(f) => f,
+    };
+    let f = format!("{}.velocity", super::body_field(k, b));
+    let mut v = Vec::new();
+    let mut w = Vec::new();
+    let oom = |e: std::collections::TryReserveError| {
+        err(
+            &f,
+            format!(
+                "cannot allocate the initial velocities of {} particles: {e}",
+                pts.len()
+            ),
+        )
+    };
+    v.try_reserve_exact(pts.len()).map_err(oom)?;
+    w.try_reserve_exact(pts.len()).map_err(oom)?;
+    for p in pts {
+        let (vi, wi) = field.at(to3(p));
+        if !vi.iter().chain(&wi).all(|c| c.is_finite()) {
+            return Err(err(
+                &f,
+                format!(
+                    "the velocity at the particle at {:?} m is {vi:?} m/s (angular {wi:?} rad/s), \
+                     which is not finite",
+                    to3(p)
+                ),
+            ));
+        }
+        v.push(vect::<D>(&vi));
+        w.push(ang_from3::<D>(wi));
+    }
+    Ok(InitialVelocity::PerParticle { v, w })
 }
 
 fn vect<const D: usize>(v: &[f64]) -> Vect<D> {
@@ -45,51 +163,20 @@ where
         let mut bodies = Vec::new();
         let mut ranges = Vec::new();
         let mut count = 0usize;
+        let mut warnings = Vec::new();
         for (k, b) in scene.bodies.iter().enumerate() {
-            let mut pts: Vec<Vect<D>> = Vec::new();
-            let cells: usize = b
-                .boxes
-                .iter()
-                .filter_map(|r| scene.cell_counts(r, "").ok())
-                .map(|n| n.iter().product::<usize>())
-                .sum();
-            pts.try_reserve_exact(cells).map_err(|e| {
-                err(
-                    format!("{}.boxes", super::body_field(k, b)),
-                    format!("cannot allocate the {cells} particles of the body: {e}"),
-                )
-            })?;
-            for (j, r) in b.boxes.iter().enumerate() {
-                let n = scene.cell_counts(r, &format!("bodies[{k}].boxes[{j}]"))?;
-                let first_new = pts.len();
-                let grid = (j > 0).then(|| crate::physics::grid::CellGrid::build(&pts, None, dp));
-                for code in 0..n.iter().product::<usize>() {
-                    let mut c = code;
-                    let mut p = Vect::<D>::zeros();
-                    for a in 0..D {
-                        p[a] = r.min[a] + ((c % n[a]) as f64 + 0.5) * dp;
-                        c /= n[a];
-                    }
-                    let mut taken = false;
-                    if let Some(g) = &grid {
-                        g.for_each_near(&pts[..first_new], &p, 0.25 * dp, |_| taken = true);
-                    }
-                    if !taken {
-                        pts.push(p);
-                    }
-                }
-            }
+            let (pts, box_of) = body_points::<D>(scene, k)?;
+            warnings.extend(super::resolution::body_warnings::<D>(
+                scene, k, &pts, &box_of,
+            ));
+            let velocity = initial_velocity::<D>(scene, k, &pts)?;
             ranges.push(count..count + pts.len());
             count += pts.len();
             bodies.push(BodyInit {
                 name: b.name.clone(),
                 material: b.material,
                 points: pts,
-                velocity: b
-                    .velocity
-                    .as_deref()
-                    .map(vect::<D>)
-                    .unwrap_or_else(Vect::<D>::zeros),
+                velocity,
             });
         }
         let select = |body: &str, r: &Region, field: &str| -> Result<Vec<u32>, SceneError> {
@@ -174,7 +261,11 @@ where
                 particle,
             });
         }
-        Ok(Model { world, probes })
+        Ok(Model {
+            world,
+            probes,
+            warnings,
+        })
     }
 
     /// Displacement of probe k (m).

@@ -4,9 +4,16 @@
 mod build;
 pub mod limits;
 pub mod memory;
+pub mod resolution;
+pub mod velocity;
 
 pub use build::{Model, ProbeAt};
 use limits::num;
+pub use resolution::SceneWarning;
+pub use velocity::{
+    AngularVelocity, BodyVelocity, ModeShape, ModeShapeProfile, Omega, TableProfile, VelocityField,
+    VelocityProfile,
+};
 
 use crate::physics::{Material, SolverOptions};
 use serde::{Deserialize, Serialize};
@@ -75,9 +82,12 @@ pub struct Body {
     pub material: Material,
     /// Extents (m); each side must be a whole number of particle spacings.
     pub boxes: Vec<Region>,
-    /// Initial velocity (m/s).
+    /// Initial velocity: `[vx, vy(, vz)]` (m/s, the same for every particle), or a field
+    /// `{"linear": [..], "angular": {"omega": .., "center": [..]}, "profiles": [..]}` summed
+    /// at each particle's reference position (see [`BodyVelocity`], module `velocity`). Particles
+    /// of boundary groups start at rest along their held axes. None (null): at rest.
     #[serde(default)]
-    pub velocity: Option<Vec<f64>>,
+    pub velocity: Option<BodyVelocity>,
 }
 
 /// Kind of boundary group.
@@ -315,7 +325,7 @@ impl Scene {
                 self.cell_counts(r, &format!("{f}.boxes[{j}]"))?;
             }
             if let Some(v) = &b.velocity {
-                vector(&format!("{f}.velocity"), v, d)?;
+                velocity::validate(&format!("{f}.velocity"), v, d)?;
             }
         }
         let total = self.particle_bound();

@@ -42,7 +42,7 @@ where
         name: "block".into(),
         material: STEEL_LIKE,
         points: block::<D>(n, l0),
-        velocity: Vect::<D>::zeros(),
+        velocity: Vect::<D>::zeros().into(),
     };
     World::new(
         l0,

@@ -1,0 +1,255 @@
+//! Warnings of under-resolved geometry, from the particles a scene creates (before any World is
+//! built, so the FMU can report them at fmi2Instantiate):
+//!
+//! * a box of a body whose particles have all their neighbours within re in one plane or on
+//!   one line: the body is a single layer (column) of particles there, with no stiffness
+//!   across it (the shape tensor is singular and only its pseudo-inverse exists);
+//! * a body in which no particle has the full neighbourhood of an interior particle: it is
+//!   nowhere thicker than 2 m particles (m = the lattice layers within re, 2 at re = 2.1 l0),
+//!   so every particle is near a surface and the operators' surface error governs the whole
+//!   body.
+use super::build::body_points;
+use super::limits::num;
+use super::{body_field, Scene};
+use crate::physics::bonds::weight;
+use crate::physics::dim::{sym_eigen, Mat};
+use crate::physics::grid::CellGrid;
+use crate::physics::{Dim, Space, Vect};
+
+/// A problem of a scene that does not stop it from running: which field and what is wrong.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct SceneWarning {
+    pub field: String,
+    pub message: String,
+}
+
+impl std::fmt::Display for SceneWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "scene warning in {}: {}", self.field, self.message)
+    }
+}
+
+/// Lattice layers within re on each side of a particle: the largest m with w(m l0) > 0.
+fn layers(re_factor: f64) -> usize {
+    (1..)
+        .take_while(|&m| weight(m as f64, re_factor) > 0.0)
+        .last()
+        .unwrap_or(0)
+}
+
+/// Bonds of a particle with a full neighbourhood on the lattice (counted as the bonds are:
+/// positive weight).
+fn full_neighbourhood<const D: usize>(re_factor: f64) -> usize {
+    let m = re_factor.ceil() as i64;
+    let side = (2 * m + 1) as usize;
+    (0..side.pow(D as u32))
+        .filter(|&code| {
+            let mut c = code;
+            let mut r2 = 0.0;
+            for _ in 0..D {
+                let k = (c % side) as i64 - m;
+                c /= side;
+                r2 += (k * k) as f64;
+            }
+            weight(r2.sqrt(), re_factor) > 0.0
+        })
+        .count()
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// The warnings of body k whose particles are `pts`, `box_of` the box each comes from.
+pub(crate) fn body_warnings<const D: usize>(
+    scene: &Scene,
+    k: usize,
+    pts: &[Vect<D>],
+    box_of: &[u32],
+) -> Vec<SceneWarning>
+where
+    Space: Dim<D>,
+{
+    let body = &scene.bodies[k];
+    let bf = body_field(k, body);
+    let dp = scene.particle_spacing;
+    let rf = scene.solver.re_factor;
+    let re = rf * dp;
+    let grid = CellGrid::build(pts, None, re);
+    let full = full_neighbourhood::<D>(rf);
+    let m = layers(rf);
+    let needed = 2 * m + 1;
+    // Per box: particles with a singular neighbourhood, and the directions it lacks.
+    let nb = body.boxes.len();
+    let mut flat = vec![0usize; nb];
+    let mut isolated = vec![0usize; nb];
+    let mut missing = vec![[false; 3]; nb];
+    let mut oblique = vec![false; nb];
+    let mut rank_of = vec![D; nb];
+    let mut any_full = false;
+    let mut any_flat = 0usize;
+    for (i, p) in pts.iter().enumerate() {
+        let mut count = 0usize;
+        let mut shape = Mat::<D>::zeros();
+        grid.for_each_near(pts, p, re, |j| {
+            let r = pts[j as usize] - p;
+            if weight(r.norm(), re) > 0.0 {
+                count += 1;
+                shape += r * r.transpose() / r.norm_squared();
+            }
+        });
+        any_full |= count >= full;
+        let bx = box_of[i] as usize;
+        if count == 0 {
+            isolated[bx] += 1;
+            any_flat += 1;
+            continue;
+        }
+        let (vals, vecs) = sym_eigen(&shape);
+        let top = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let weak: Vec<usize> = (0..D).filter(|&e| vals[e].abs() <= 1e-10 * top).collect();
+        if weak.is_empty() {
+            continue;
+        }
+        flat[bx] += 1;
+        any_flat += 1;
+        rank_of[bx] = rank_of[bx].min(D - weak.len());
+        for e in weak {
+            let dir = vecs.column(e);
+            match (0..D).find(|&a| dir[a].abs() > 1.0 - 1e-6) {
+                Some(a) => missing[bx][a] = true,
+                None => oblique[bx] = true,
+            }
+        }
+    }
+    let mut out = Vec::new();
+    let advice = |thickness: Option<f64>| match thickness {
+        Some(t) if t > 0.0 => format!(
+            "refine particle_spacing (now {} m) so that at least {needed} particles span it \
+             (dp <= {} m)",
+            num(dp),
+            // Six significant digits: the thickness over n is often a float hair below the
+            // round number it means.
+            num(format!("{:.5e}", t / needed as f64).parse().unwrap_or(t))
+        ),
+        _ => format!(
+            "refine particle_spacing (now {} m) so that at least {needed} particles span the \
+             thinnest part",
+            num(dp)
+        ),
+    };
+    for j in 0..nb {
+        let in_box = box_of.iter().filter(|&&b| b as usize == j).count();
+        let field = format!("{bf}.boxes[{j}]");
+        let r = &body.boxes[j];
+        if flat[j] > 0 {
+            let axes: Vec<usize> = (0..D).filter(|&a| missing[j][a]).collect();
+            let names: Vec<&str> = axes.iter().map(|&a| AXES[a]).collect();
+            let (lie, what) = if rank_of[j] == 2 {
+                ("in one plane", "a single layer of particles")
+            } else if D == 2 {
+                ("on one line", "a single row of particles")
+            } else {
+                ("on one line", "a single column of particles")
+            };
+            let across = if names.is_empty() || oblique[j] {
+                String::new()
+            } else {
+                format!(" (one particle thick along {})", names.join(" and "))
+            };
+            // The box's side across the layer (dp for a box one cell thick).
+            let thickness = axes
+                .iter()
+                .map(|&a| r.max[a] - r.min[a])
+                .fold(None, |t: Option<f64>, x| Some(t.map_or(x, |t| t.min(x))));
+            out.push(SceneWarning {
+                field: field.clone(),
+                message: format!(
+                    "{} of its {in_box} particles have all their neighbours within re = {} dp \
+                     {lie}: the body is {what}{across} there, whose shape tensor is singular, so \
+                     the particle operators have no stiffness across it; {}",
+                    flat[j],
+                    num(rf),
+                    advice(thickness)
+                ),
+            });
+        }
+        if isolated[j] > 0 {
+            out.push(SceneWarning {
+                field,
+                message: format!(
+                    "{} of its {in_box} particles have no neighbour within re = {} dp: they are \
+                     bonded to nothing and move freely; refine particle_spacing (now {} m) or \
+                     make the box touch the rest of the body",
+                    isolated[j],
+                    num(rf),
+                    num(dp)
+                ),
+            });
+        }
+    }
+    if !any_full && any_flat < pts.len() && !pts.is_empty() {
+        // Thinnest extent of the body's particles along an axis.
+        let (axis, n) = (0..D)
+            .map(|a| {
+                let lo = pts.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min);
+                let hi = pts.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
+                (a, ((hi - lo) / dp).round() as usize + 1)
+            })
+            .min_by_key(|&(_, n)| n)
+            .expect("D >= 2");
+        out.push(SceneWarning {
+            field: bf,
+            message: format!(
+                "no particle has the full neighbourhood of an interior particle ({full} \
+                 neighbours within re = {} dp): the body is nowhere more than {} particles \
+                 thick (along {} it spans {n} particles), so every particle is near a surface, \
+                 where the particle operators are least accurate; {}",
+                num(rf),
+                needed - 1,
+                AXES[axis],
+                advice(Some(n as f64 * dp))
+            ),
+        });
+    }
+    out
+}
+
+impl Scene {
+    /// Warnings of under-resolved geometry (see the module doc), in body order; empty for a
+    /// scene that is not valid, whose memory estimate exceeds the memory available, or that is
+    /// well resolved. Builds the particles but no World (cheap: one neighbour search).
+    pub fn warnings(&self) -> Vec<SceneWarning> {
+        if self.validate().is_err() || super::memory::check(self).is_err() {
+            return Vec::new();
+        }
+        match self.dimension {
+            2 => self.warnings_d::<2>(),
+            _ => self.warnings_d::<3>(),
+        }
+    }
+
+    fn warnings_d<const D: usize>(&self) -> Vec<SceneWarning>
+    where
+        Space: Dim<D>,
+    {
+        (0..self.bodies.len())
+            .flat_map(|k| match body_points::<D>(self, k) {
+                Ok((pts, box_of)) => body_warnings::<D>(self, k, &pts, &box_of),
+                Err(_) => Vec::new(),
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lattice_counts() {
+        assert_eq!(layers(2.1), 2);
+        assert_eq!(layers(2.0), 1);
+        assert_eq!(layers(3.5), 3);
+        assert_eq!(full_neighbourhood::<2>(2.1), 12);
+        assert_eq!(full_neighbourhood::<3>(2.1), 32);
+    }
+}

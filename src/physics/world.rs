@@ -272,7 +272,10 @@ where
         let volume = l0.powi(D as i32);
         // Operators with particle rotations take the given angular velocities (see
         // InitialVelocity::PerParticle).
-        let rotational = options.model != super::params::ElasticModel::Corrected;
+        let rotational = matches!(
+            options.model,
+            super::params::ElasticModel::Paper | super::params::ElasticModel::PaperLocal
+        );
         for (b, body) in bodies.iter().enumerate() {
             let m = body.material.density * volume;
             for (k, pt) in body.points.iter().enumerate() {

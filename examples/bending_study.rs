@@ -27,7 +27,7 @@ fn main() {
             ] {
                 println!(
                     "free-free plate {name} n = {n}: f1 = {:.6} Hz",
-                    free_free(n, model)
+                    mps_solid::bending::free_free_plate_f1(n, model).unwrap()
                 );
             }
         }
@@ -63,57 +63,6 @@ fn main() {
             }
         }
     }
-}
-
-/// Free-free plate (no clamp, no singular corner): first flexural frequency, by shifted inverse
-/// iteration with the rigid motions projected out. `FREE=1` runs it instead of the study.
-#[allow(dead_code)]
-pub fn free_free(n: usize, model: ElasticModel) -> f64 {
-    use mps_solid::linear::Linearised;
-    use mps_solid::physics::Vect;
-    use mps_solid::scene::Model;
-    let mut s = plate2d_scene(n, model);
-    s.boundaries.clear();
-    s.bodies[0].boxes.truncate(1);
-    s.probes[0].point = vec![0.1, 0.0];
-    let model = Model::<2>::build(&s).unwrap();
-    let w = &model.world;
-    let np = w.len();
-    let m = &w.p.mass;
-    let c: Vect<2> = w.p.x0.iter().sum::<Vect<2>>() / np as f64;
-    let mut rig: Vec<Vec<Vect<2>>> = vec![
-        vec![Vect::<2>::new(1.0, 0.0); np],
-        vec![Vect::<2>::new(0.0, 1.0); np],
-        w.p.x0
-            .iter()
-            .map(|x| Vect::<2>::new(-(x[1] - c[1]), x[0] - c[0]))
-            .collect(),
-    ];
-    for k in 0..rig.len() {
-        for l in 0..k {
-            let d: f64 = (0..np).map(|i| m[i] * rig[k][i].dot(&rig[l][i])).sum();
-            for i in 0..np {
-                let t = rig[l][i] * d;
-                rig[k][i] -= t;
-            }
-        }
-        let nn: f64 = (0..np)
-            .map(|i| m[i] * rig[k][i].norm_squared())
-            .sum::<f64>()
-            .sqrt();
-        rig[k].iter_mut().for_each(|v| *v /= nn);
-    }
-    let mut lin = Linearised::new(w).unwrap();
-    lin.shift = (2.0 * std::f64::consts::PI * 5.0f64).powi(2);
-    lin.deflate = rig;
-    // Start: a bending-like shape.
-    let start: Vec<Vect<2>> =
-        w.p.x0
-            .iter()
-            .map(|x| Vect::<2>::new(0.0, ((x[0] - c[0]) / 0.1).powi(2) - 0.33))
-            .collect();
-    let (w1, _) = lin.lowest_mode(&start, 1e-11).unwrap();
-    w1 / (2.0 * std::f64::consts::PI)
 }
 
 /// Cost of one force evaluation per model (TIME=1): cantilever3d with n across.

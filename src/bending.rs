@@ -209,3 +209,97 @@ pub fn linear_bending(scene: &Scene) -> Result<LinearBending, SceneError> {
         _ => run!(3),
     })
 }
+
+/// First flexural frequency (Hz) of the plate of `plate2d_scene` without its clamp (free-free:
+/// no singular corner, so the operator's own order of convergence shows), by shifted inverse
+/// iteration with the three rigid motions projected out. A zero-energy (hourglass) mode would
+/// come out as a frequency near zero.
+pub fn free_free_plate_f1(n: usize, model: ElasticModel) -> Result<f64, SceneError> {
+    let e = |m: String| SceneError {
+        field: String::new(),
+        message: m,
+    };
+    let mut s = plate2d_scene(n, model);
+    s.boundaries.clear();
+    s.bodies[0].boxes.truncate(1);
+    s.probes[0].point = vec![0.1, 0.0];
+    let model = Model::<2>::build(&s)?;
+    let w = &model.world;
+    let np = w.len();
+    let m = &w.p.mass;
+    let c: Vect<2> = w.p.x0.iter().sum::<Vect<2>>() / np as f64;
+    let mut rig: Vec<Vec<Vect<2>>> = vec![
+        vec![Vect::<2>::new(1.0, 0.0); np],
+        vec![Vect::<2>::new(0.0, 1.0); np],
+        w.p.x0
+            .iter()
+            .map(|x| Vect::<2>::new(-(x[1] - c[1]), x[0] - c[0]))
+            .collect(),
+    ];
+    for k in 0..rig.len() {
+        for l in 0..k {
+            let d: f64 = (0..np).map(|i| m[i] * rig[k][i].dot(&rig[l][i])).sum();
+            for i in 0..np {
+                let t = rig[l][i] * d;
+                rig[k][i] -= t;
+            }
+        }
+        let nn: f64 = (0..np)
+            .map(|i| m[i] * rig[k][i].norm_squared())
+            .sum::<f64>()
+            .sqrt();
+        rig[k].iter_mut().for_each(|v| *v /= nn);
+    }
+    let mut lin = Linearised::new(w).map_err(|x| e(x.to_string()))?;
+    lin.shift = (2.0 * std::f64::consts::PI * 5.0f64).powi(2);
+    lin.deflate = rig;
+    // Start: a bending-like shape.
+    let start: Vec<Vect<2>> =
+        w.p.x0
+            .iter()
+            .map(|x| Vect::<2>::new(0.0, ((x[0] - c[0]) / 0.1).powi(2) - 0.33))
+            .collect();
+    let (w1, _) = lin
+        .lowest_mode(&start, 1e-11)
+        .map_err(|x| e(x.to_string()))?;
+    Ok(w1 / (2.0 * std::f64::consts::PI))
+}
+
+/// reference/plate2d_fem.json (converged plane-strain FEM, tools/fem_bending.py).
+pub const PLATE_FEM_JSON: &str = include_str!("../reference/plate2d_fem.json");
+/// reference/cantilever3d_fem.json (converged 3D FEM, tools/fem_bending.py).
+pub const CANTILEVER_FEM_JSON: &str = include_str!("../reference/cantilever3d_fem.json");
+
+/// Converged FEM first frequency (Hz) and static tip deflection under gravity G (m).
+#[derive(Clone, Copy, Debug)]
+pub struct BendingReference {
+    pub f1: f64,
+    pub tip: f64,
+}
+
+fn reference_from(json: &str, f_key: &str, tip_key: &str) -> BendingReference {
+    let v: serde_json::Value = serde_json::from_str(json).expect("reference JSON");
+    let c = &v["converged"];
+    let get = |k: &str| {
+        c[k].as_f64()
+            .unwrap_or_else(|| panic!("reference lacks converged.{k}"))
+    };
+    BendingReference {
+        f1: get(f_key),
+        tip: get(tip_key),
+    }
+}
+
+/// The GMS plate's FEM reference.
+pub fn plate_reference() -> BendingReference {
+    reference_from(PLATE_FEM_JSON, "f1_hz", "static_tip_uy_m")
+}
+
+/// The slender cantilever's FEM reference.
+pub fn cantilever_reference() -> BendingReference {
+    reference_from(
+        CANTILEVER_FEM_JSON,
+        "f1_bending_z_hz",
+        "static_tip_uz_axis_m",
+    )
+}

@@ -116,6 +116,9 @@ fn series_reads_back() {
         assert_eq!(point_array(pd, "surface"), &IOBuffer::U8(surf));
         let broken: Vec<i32> = snap.broken_bonds.iter().map(|&b| b as i32).collect();
         assert_eq!(point_array(pd, "broken_bonds"), &IOBuffer::I32(broken));
+        let fixed: Vec<u8> = snap.fixed.iter().map(|&f| f as u8).collect();
+        assert!(fixed.contains(&1), "case 1's clamp holds particles");
+        assert_eq!(point_array(pd, "fixed"), &IOBuffer::U8(fixed));
     }
 
     // .pvd: one DataSet per snapshot, times and files in order.
@@ -194,6 +197,7 @@ fn every_view_and_edge_cases() {
         velocity: vec![],
         surface: vec![],
         broken_bonds: vec![],
+        fixed: vec![],
     };
     write_vtu(&dir.0.join("empty.vtu"), &empty).unwrap();
     mps_solid::output::write_png(&dir.0.join("empty.png"), &empty, View::XY).unwrap();

@@ -598,3 +598,103 @@ fn view3d_bad_input_is_an_error() {
     assert!(write_grid_png_3d(&ok_path, &grid, &frame).is_err());
     assert!(!ok_path.exists(), "nothing written on errors");
 }
+
+#[test]
+fn figure9_of_a_short_case3_run() {
+    use mps_solid::case3::{
+        case3_report_with, case3_scene, figure9_foot, write_figure9, Figure9Capture, Figure9Column,
+    };
+    // Instants must be finite, >= 0 and increasing.
+    assert!(Figure9Capture::new(&[]).is_err());
+    assert!(Figure9Capture::new(&[0.1, 0.1]).is_err());
+    assert!(Figure9Capture::new(&[f64::NAN]).is_err());
+    assert!(Figure9Capture::new(&[-0.1]).is_err());
+
+    let dir = TempDir::new("figure9");
+    let mut columns = Vec::new();
+    let mut names = Vec::new();
+    for fc in [false, true] {
+        let scene = case3_scene(0.05, fc, mps_solid::physics::ElasticModel::Corrected);
+        let mut cap = Figure9Capture::new(&[0.0, 0.07]).unwrap();
+        let r = case3_report_with(&scene, 0.07, 0.01, 0.0025, |sim, kind| cap.check(sim, kind))
+            .unwrap();
+        names = cap.body_names().to_vec();
+        let panels = cap.finish(&r).unwrap();
+        assert_eq!(panels.len(), 2);
+        assert_eq!(panels[0].snapshot.time, 0.0, "the initial state");
+        assert!((panels[1].snapshot.time - 0.07).abs() < 1e-9);
+        assert!(!panels[1].stopped);
+        columns.push(Figure9Column {
+            heading: format!("fractured-surface contact {fc}"),
+            tag: if fc { "with" } else { "without" }.into(),
+            panels,
+            failure: None,
+        });
+    }
+    assert_eq!(names, ["cube", "block"]);
+    // An instant after the end of the run is an error, not a panel.
+    let scene = case3_scene(0.05, true, mps_solid::physics::ElasticModel::Corrected);
+    let mut cap = Figure9Capture::new(&[0.0, 1.0]).unwrap();
+    let r = case3_report_with(&scene, 0.005, 0.005, 0.0025, |s, k| cap.check(s, k)).unwrap();
+    assert!(cap
+        .finish(&r)
+        .unwrap_err()
+        .contains("before the Figure 9 instant 1"));
+
+    let files = write_figure9(
+        &dir.0,
+        "fig",
+        "title",
+        "subtitle",
+        &names,
+        &columns,
+        Camera::default(),
+        Some(&figure9_foot()),
+    )
+    .unwrap();
+    let expect: Vec<String> = [
+        "fig.png",
+        "fig_foot.png",
+        "fig_without_t0.00.png",
+        "fig_without_t0.07.png",
+        "fig_with_t0.00.png",
+        "fig_with_t0.07.png",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let got: Vec<String> = files
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(got, expect);
+    for f in &files {
+        let bytes = std::fs::read(f).unwrap();
+        let (w, h) = png_size(&bytes);
+        let im = image::load_from_memory(&bytes).unwrap().to_rgb8();
+        assert_eq!(im.dimensions(), (w, h));
+        let c = census(&im, [0, 0, w as i32, h as i32]);
+        assert_eq!(count(&c, Kind::Red), 0, "{f:?}: nothing broken by 0.07 s");
+        assert!(count(&c, Kind::Blue) > 1000, "{f:?}: {c:?}");
+        assert!(bytes.len() < 1_500_000, "{f:?}: {} bytes", bytes.len());
+    }
+    // The composite: two columns, a row per instant, wider than one panel image.
+    let (cw, ch) = png_size(&std::fs::read(&files[0]).unwrap());
+    let (pw, _) = png_size(&std::fs::read(&files[2]).unwrap());
+    assert!(cw > pw && ch > 800, "{cw} x {ch}");
+    // A directory that cannot be created is an error.
+    let blocker = dir.0.join("file");
+    std::fs::write(&blocker, b"x").unwrap();
+    let e = write_figure9(
+        &blocker.join("sub"),
+        "fig",
+        "t",
+        "",
+        &names,
+        &columns,
+        Camera::default(),
+        None,
+    )
+    .unwrap_err();
+    assert!(e.contains("creating"), "{e}");
+}

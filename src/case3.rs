@@ -602,7 +602,8 @@ fn time_tag(t: f64) -> String {
 
 /// Writes Figure 9: `dir/NAME.png`, the columns side by side and one row per instant, and
 /// `dir/NAME_TAG_tT.png` for every panel; all drawn with one frame (same position, scale and
-/// depth shading) seen by `camera`; with `detail`, also `dir/NAME_DETAILTAG.png`, the same grid
+/// depth shading) seen by `camera`, fitted to the bulk of the bodies (pieces thrown far away
+/// are left out and counted in the titles); with `detail`, also `dir/NAME_DETAILTAG.png`, the same grid
 /// of the particles inside the detail's box only. Returns the paths written, the composite
 /// first. `title` and `subtitle` head the composites. Errors: no column, columns of different
 /// instants, empty or non-finite snapshots, a detail box without particles, a directory or file
@@ -644,17 +645,19 @@ pub fn write_figure9(
         .iter()
         .flat_map(|c| c.panels.iter().map(|p| &p.snapshot))
         .collect();
-    let frame = Frame3d::fit(camera, &snaps)?;
+    let frame = Frame3d::fit_bulk(camera, &snaps)?;
     let label = |c: &Figure9Column, p: &Figure9Panel, variant: bool| {
         let mut notes: Vec<String> = Vec::new();
         if let Some(n) = figure9_note(p.instant) {
             notes.push(format!("paper at {} s: {n}", time_tag(p.instant)));
         }
         if p.stopped {
+            // "particles overlap at t = ... (step ...): ..." -> "particles overlap".
             let why = c
                 .failure
                 .as_deref()
-                .and_then(|m| m.split(':').next())
+                .and_then(|m| m.split([':', '(']).next())
+                .map(|m| m.split(" at t =").next().unwrap_or(m).trim())
                 .unwrap_or("failure");
             notes.push(format!(
                 "run stopped at {:.3} s ({why}): last state",

@@ -415,6 +415,28 @@ fn view3d_colours_projection_and_broken_bonds() {
     let light = im.pixels().filter(|p| p.0 == [one.0, one.1, one.2]).count();
     assert!(light > 20, "{light} pixels of the one-bond red");
 
+    // A particle thrown far away: the bulk frame leaves it out (same frame as without it) and
+    // the picture is still drawn; the plain frame would shrink the bodies to a few pixels.
+    let mut thrown = broken.clone();
+    thrown.position[0] = [0.0, 0.0, 20.0];
+    let bulk = Frame3d::fit_bulk(Camera::default(), &[&thrown]).unwrap();
+    let plain = Frame3d::fit(Camera::default(), &[&thrown]).unwrap();
+    assert!(bulk.skip_outside && !plain.skip_outside);
+    assert!(plain.up[1] > 15.0, "{:?}", plain.up);
+    for k in 0..2 {
+        assert!(
+            (bulk.right[k] - frame.right[k]).abs() < 0.06,
+            "{bulk:?} {frame:?}"
+        );
+        assert!(
+            (bulk.up[k] - frame.up[k]).abs() < 0.06,
+            "{bulk:?} {frame:?}"
+        );
+    }
+    let img = write_png_3d(&dir.0.join("thrown.png"), &thrown, &label, &bulk).unwrap();
+    assert!((img.panels[0].scale - g.scale).abs() < 0.1 * g.scale);
+    assert!(write_png_3d(&dir.0.join("x.png"), &thrown, &label, &frame).is_err());
+
     // Two single particles at the same x, y: the higher one is drawn higher.
     let mut pair = two_bodies();
     pair.position.truncate(2);

@@ -374,6 +374,9 @@ pub struct Frame3d {
     /// Only the particles inside this box (min, max corners, m) are framed and drawn (a detail
     /// view); `None`: all.
     pub clip: Option<([f64; 3], [f64; 3])>,
+    /// Particles seen outside the frame are left out (and counted in the panel's title) instead
+    /// of being an error: frames of [`Frame3d::fit_bulk`], which leave out pieces that fly off.
+    pub skip_outside: bool,
 }
 
 fn inside(clip: &Option<([f64; 3], [f64; 3])>, p: &[f64; 3]) -> bool {
@@ -460,7 +463,62 @@ impl Frame3d {
             depth: [lo[2], hi[2]],
             spacing: if dp > 0.0 { dp } else { pad },
             clip,
+            skip_outside: false,
         })
+    }
+
+    /// The frame of the bulk of `snaps`: of the particles with at least `BULK_NEIGHBOURS`
+    /// others within 1.6 spacings, so that single particles and small pieces thrown far away
+    /// by fracture do not shrink the bodies to dots; particles outside it are left out of the
+    /// pictures and counted in their titles. Errors as [`Frame3d::fit`].
+    pub fn fit_bulk(camera: Camera, snaps: &[&ParticleSnapshot]) -> Result<Self, String> {
+        let mut frame = Self::fit(camera, snaps)?;
+        let h = 1.6 * frame.spacing;
+        let bulk: Vec<ParticleSnapshot> = snaps
+            .iter()
+            .map(|s| {
+                let mut n = vec![0usize; s.position.len()];
+                for_each_neighbour(&s.position, h, |i, _, _| n[i] += 1);
+                let keep: Vec<usize> = (0..n.len()).filter(|&i| n[i] >= BULK_NEIGHBOURS).collect();
+                let pick = |v: &[[f64; 3]]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
+                ParticleSnapshot {
+                    time: s.time,
+                    body: keep.iter().map(|&i| s.body[i]).collect(),
+                    position: pick(&s.position),
+                    displacement: pick(&s.displacement),
+                    velocity: pick(&s.velocity),
+                    surface: keep.iter().map(|&i| s.surface[i]).collect(),
+                    broken_bonds: keep.iter().map(|&i| s.broken_bonds[i]).collect(),
+                    fixed: Vec::new(),
+                }
+            })
+            .filter(|s| !s.position.is_empty())
+            .collect();
+        if !bulk.is_empty() {
+            let refs: Vec<&ParticleSnapshot> = bulk.iter().collect();
+            let spacing = frame.spacing;
+            frame = Self::fit(camera, &refs)?;
+            frame.spacing = spacing;
+        }
+        frame.skip_outside = true;
+        Ok(frame)
+    }
+
+    /// Whether a point in view coordinates is inside the frame.
+    fn holds(&self, q: [f64; 3]) -> bool {
+        let tol = 1e-9 * (self.width() + self.height());
+        q[0] >= self.right[0] - tol
+            && q[0] <= self.right[1] + tol
+            && q[1] >= self.up[0] - tol
+            && q[1] <= self.up[1] + tol
+    }
+
+    /// Particles of `snap` (inside the clip box) that the frame leaves out.
+    fn left_out(&self, snap: &ParticleSnapshot) -> usize {
+        snap.position
+            .iter()
+            .filter(|p| inside(&self.clip, p) && !self.holds(self.camera.project(**p)))
+            .count()
     }
 
     fn width(&self) -> f64 {
@@ -533,15 +591,33 @@ pub const BROKEN_CLASSES: [(u32, RGBColor); 4] = [
 const LIGHT: [f64; 3] = [-0.25, 0.2, 0.95];
 const AMBIENT: f64 = 0.4;
 const FAR_SHADE: f64 = 0.75;
+/// Neighbours within 1.6 spacings that make a particle part of the bulk ([`Frame3d::fit_bulk`]).
+const BULK_NEIGHBOURS: usize = 4;
 const SHADES: f64 = 16.0;
 
 /// Outward normals (unit, world axes) of the particles from their current neighbourhood: minus
 /// the weighted sum of the offsets to the neighbours within 1.6 spacings. `None` inside a body
 /// (the sum cancels), where no light direction is defined.
 fn normals(pos: &[[f64; 3]], dp: f64) -> Vec<Option<[f64; 3]>> {
-    let h = 1.6 * dp;
+    let mut sum = vec![[0.0; 3]; pos.len()];
+    for_each_neighbour(pos, 1.6 * dp, |i, d, w| {
+        for k in 0..3 {
+            sum[i][k] -= w * d[k];
+        }
+    });
+    sum.into_iter()
+        .map(|s| {
+            let n = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+            (n > 0.4 * dp).then(|| s.map(|x| x / n))
+        })
+        .collect()
+}
+
+/// Calls `f(i, x_j - x_i, 1 - r / h)` for every ordered pair of particles closer than `h`
+/// (a cell grid of side h). Nothing for h <= 0 or NaN.
+fn for_each_neighbour(pos: &[[f64; 3]], h: f64, mut f: impl FnMut(usize, [f64; 3], f64)) {
     if h.is_nan() || h <= 0.0 {
-        return vec![None; pos.len()];
+        return;
     }
     let cell = |p: &[f64; 3]| -> [i64; 3] { [0, 1, 2].map(|k| (p[k] / h).floor() as i64) };
     let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> =
@@ -549,34 +625,25 @@ fn normals(pos: &[[f64; 3]], dp: f64) -> Vec<Option<[f64; 3]>> {
     for (i, p) in pos.iter().enumerate() {
         grid.entry(cell(p)).or_default().push(i);
     }
-    pos.iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let c = cell(p);
-            let mut sum = [0.0; 3];
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
-                        let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
-                            continue;
-                        };
-                        for &j in list {
-                            let d = [0, 1, 2].map(|k| pos[j][k] - p[k]);
-                            let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                            if j != i && r < h {
-                                let w = 1.0 - r / h;
-                                for k in 0..3 {
-                                    sum[k] -= w * d[k];
-                                }
-                            }
+    for (i, p) in pos.iter().enumerate() {
+        let c = cell(p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                        continue;
+                    };
+                    for &j in list {
+                        let d = [0, 1, 2].map(|k| pos[j][k] - p[k]);
+                        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                        if j != i && r < h {
+                            f(i, d, 1.0 - r / h);
                         }
                     }
                 }
             }
-            let n = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
-            (n > 0.4 * dp).then(|| sum.map(|x| x / n))
-        })
-        .collect()
+        }
+    }
 }
 
 /// The brightness factor of a particle: lit by `LIGHT` on its normal (view coordinates), dimmed
@@ -661,7 +728,7 @@ fn fmt_s(t: f64) -> String {
 }
 
 /// The panel's title lines: time, variant and broken bonds, then the note.
-fn panel_title(snap: &ParticleSnapshot, label: &Label3d) -> Vec<String> {
+fn panel_title(snap: &ParticleSnapshot, label: &Label3d, frame: &Frame3d) -> Vec<String> {
     let pairs = broken_pairs(snap);
     let mut first = format!("t = {} s", fmt_s(snap.time));
     if !label.variant.is_empty() {
@@ -675,6 +742,13 @@ fn panel_title(snap: &ParticleSnapshot, label: &Label3d) -> Vec<String> {
             .iter()
             .flat_map(|n| n.lines().map(str::to_string)),
     );
+    let out = frame.left_out(snap);
+    if out > 0 {
+        lines.push(format!(
+            "{out} particle{} thrown out of the view, not drawn",
+            if out == 1 { "" } else { "s" }
+        ));
+    }
     lines
 }
 
@@ -702,11 +776,12 @@ fn wrap(text: &str, chars: usize) -> Vec<String> {
 fn title_layout(
     snap: &ParticleSnapshot,
     label: &Label3d,
+    frame: &Frame3d,
     width: f64,
     first: f64,
     note: f64,
 ) -> Vec<(String, f64)> {
-    let lines = panel_title(snap, label);
+    let lines = panel_title(snap, label, frame);
     let chars = ((width / (0.6 * note)) as usize).max(8);
     let mut out = vec![(lines[0].clone(), fit_size(&lines[0], width, first))];
     for l in &lines[1..] {
@@ -753,7 +828,7 @@ fn draw_particles<DB: DrawingBackend>(
     let cam = frame.camera;
     let q: Vec<[f64; 3]> = snap.position.iter().map(|p| cam.project(*p)).collect();
     let mut order: Vec<usize> = (0..q.len())
-        .filter(|&i| inside(&frame.clip, &snap.position[i]))
+        .filter(|&i| inside(&frame.clip, &snap.position[i]) && frame.holds(q[i]))
         .collect();
     order.sort_by(|&a, &b| q[a][2].total_cmp(&q[b][2]).then(a.cmp(&b)));
     let dspan = (frame.depth[1] - frame.depth[0]).max(1e-12);
@@ -930,7 +1005,7 @@ pub fn write_png_3d(
     let legend_h = ROW_H as u32 * (entries.len() as u32 + 2) + 130;
     let m = PANEL_MARGIN as u32;
     let width = m + pw.max(300) + m + LEGEND3D_W;
-    let lines = title_layout(snap, label, f64::from(width - 2 * m), 20.0, 16.0);
+    let lines = title_layout(snap, label, frame, f64::from(width - 2 * m), 20.0, 16.0);
     let title_h = ROW_H as u32 * lines.len() as u32 + 14;
     let height = title_h + (ph + 2 * m).max(legend_h);
     let mut buf = vec![255u8; width as usize * height as usize * 3];
@@ -981,17 +1056,11 @@ pub fn write_png_3d(
 
 /// Every particle of `snap` inside the frame (a frame fitted to other snapshots may miss it).
 fn check_inside(snap: &ParticleSnapshot, frame: &Frame3d) -> DrawResult {
-    let tol = 1e-9 * (frame.width() + frame.height());
+    if frame.skip_outside {
+        return Ok(());
+    }
     for (i, p) in snap.position.iter().enumerate() {
-        if !inside(&frame.clip, p) {
-            continue;
-        }
-        let q = frame.camera.project(*p);
-        if q[0] < frame.right[0] - tol
-            || q[0] > frame.right[1] + tol
-            || q[1] < frame.up[0] - tol
-            || q[1] > frame.up[1] + tol
-        {
+        if inside(&frame.clip, p) && !frame.holds(frame.camera.project(*p)) {
             return Err(format!(
                 "particle {i} of the snapshot at t = {} s is outside the frame of the view",
                 snap.time
@@ -1048,7 +1117,7 @@ pub fn write_grid_png_3d(path: &Path, grid: &Grid3d, frame: &Frame3d) -> Result<
         .cells
         .iter()
         .flatten()
-        .map(|(snap, l)| title_layout(snap, l, text_w, 16.0, 13.0))
+        .map(|(snap, l)| title_layout(snap, l, frame, text_w, 16.0, 13.0))
         .collect();
     let title_lines = layouts.iter().map(Vec::len).max().unwrap_or(1) as i32;
     let cell_h = 20 * title_lines + 10 + ph + m;

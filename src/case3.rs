@@ -1,9 +1,12 @@
 //! The paper's case 3 (section 3.3): a cube hits a block; contact, fracture, and contact between
 //! fractured surfaces. Scene builders for both variants (with and without contact detection
 //! between fractured surfaces) and a report of the event times.
+use std::path::{Path, PathBuf};
+
+use crate::output::{write_grid_png_3d, write_png_3d, Camera, Frame3d, Grid3d, Label3d};
 use crate::physics::{ContactOptions, ElasticModel, Material, SolverOptions};
 use crate::scene::{Body, BodyVelocity, Boundary, BoundaryKind, Gravity, Probe, Region, Scene};
-use crate::sim::Simulation;
+use crate::sim::{ParticleSnapshot, Simulation};
 use serde::{Deserialize, Serialize};
 
 /// Cube: rho = 1000 kg/m^3, E = 6 MPa, nu = 0.3.
@@ -249,6 +252,17 @@ pub struct Case3Report {
 /// A fragment of at least this many particles counts as a part of the block (s).
 pub const MIN_FRAGMENT: usize = 20;
 
+/// What a callback of [`case3_report_with`] is shown.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CheckPoint {
+    /// The initial state, before the first step (not shown to [`case3_report`]'s callback).
+    Start,
+    /// The state at an event check (every `check` s).
+    Regular,
+    /// The state where the run stopped on an error (overlap, blow-up); the last call.
+    Failure,
+}
+
 /// Runs a case 3 scene to `end_time`, sampling every `interval` (s). Contact and fracture times
 /// are resolved to the sampling interval of the event checks, `check` (s). `on_check` sees the
 /// simulation after every check (progress bars, snapshots).
@@ -258,6 +272,22 @@ pub fn case3_report(
     interval: f64,
     check: f64,
     mut on_check: impl FnMut(&Simulation),
+) -> Result<Case3Report, String> {
+    case3_report_with(scene, end_time, interval, check, |sim, kind| {
+        if kind == CheckPoint::Regular {
+            on_check(sim)
+        }
+    })
+}
+
+/// [`case3_report`] whose callback also sees the state where a failed run stopped
+/// ([`CheckPoint::Failure`], once, last), e.g. for the overlap panel of Figure 9.
+pub fn case3_report_with(
+    scene: &Scene,
+    end_time: f64,
+    interval: f64,
+    check: f64,
+    mut on_check: impl FnMut(&Simulation, CheckPoint),
 ) -> Result<Case3Report, String> {
     let t0 = std::time::Instant::now();
     let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
@@ -300,6 +330,7 @@ pub fn case3_report(
         max_bond_strain: sim.max_bond_strain(),
     };
     r.history.push(sample(&sim));
+    on_check(&sim, CheckPoint::Start);
     let n_checks = (end_time / check).round().max(1.0) as u64;
     let per_sample = ((interval / check).round() as u64).max(1);
     for k in 1..=n_checks {
@@ -308,9 +339,10 @@ pub fn case3_report(
             r.failure_time = Some(sim.time());
             r.failure = Some(e.to_string());
             r.history.push(sample(&sim));
+            on_check(&sim, CheckPoint::Failure);
             break;
         }
-        on_check(&sim);
+        on_check(&sim, CheckPoint::Regular);
         let ev = events(&sim);
         if r.first_contact.is_none() && ev.inter_body_contact {
             r.first_contact = Some(t);
@@ -409,4 +441,275 @@ pub fn case3_text(r: &Case3Report) -> String {
         r.final_broken_bonds, r.final_fragments, r.final_large_fragments, MIN_FRAGMENT
     );
     s
+}
+
+/// The instants of the paper's Figure 9 (s) and what the paper says of each (section 3.3).
+pub const FIGURE9_INSTANTS: [(f64, &str); 5] = [
+    (0.07, "the cube and the block collide"),
+    (0.60, "fracture on the left side of the block"),
+    (0.70, "the fractured surfaces collide, the parts move apart"),
+    (
+        1.00,
+        "repulsion of the fractured surfaces visible (with detection)",
+    ),
+    (
+        1.70,
+        "without detection a stronger collision, stop on an overlap",
+    ),
+];
+
+/// A detail of Figure 9: the particles inside a box, drawn larger, as `NAME_TAG.png`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Figure9Detail {
+    /// File name part and a description for the title.
+    pub tag: String,
+    pub description: String,
+    /// Min and max corners (m), in the current (deformed) positions.
+    pub clip: ([f64; 3], [f64; 3]),
+}
+
+/// The detail of case 3's Figure 9: the foot of the block, where it cracks.
+pub fn figure9_foot() -> Figure9Detail {
+    Figure9Detail {
+        tag: "foot".into(),
+        description: "detail: the foot of the block (particles with z < 0.45 m), where it cracks"
+            .into(),
+        clip: ([-0.8, -0.6, -0.3], [0.8, 0.4, 0.45]),
+    }
+}
+
+/// The paper's note for an instant of Figure 9, if it is one of [`FIGURE9_INSTANTS`].
+pub fn figure9_note(t: f64) -> Option<&'static str> {
+    FIGURE9_INSTANTS
+        .iter()
+        .find(|(ti, _)| (ti - t).abs() < 1e-9)
+        .map(|(_, n)| *n)
+}
+
+/// One panel of a Figure 9 column: the state at (or, for a run that stopped before it, the last
+/// state before) an instant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Figure9Panel {
+    /// The instant asked for (s); `snapshot.time` is when the state was taken.
+    pub instant: f64,
+    pub snapshot: ParticleSnapshot,
+    /// The run stopped (overlap, blow-up) before `instant`: `snapshot` is where it stopped.
+    pub stopped: bool,
+}
+
+/// Collects the snapshots of one case 3 run at given instants: pass [`Figure9Capture::check`]
+/// to [`case3_report_with`] (with event checks that land on the instants, e.g. every 2.5 ms
+/// for the paper's), then [`Figure9Capture::finish`].
+#[derive(Clone, Debug)]
+pub struct Figure9Capture {
+    times: Vec<f64>,
+    snaps: Vec<Option<ParticleSnapshot>>,
+    failure: Option<ParticleSnapshot>,
+    body_names: Vec<String>,
+}
+
+impl Figure9Capture {
+    /// Instants (s): finite, >= 0, increasing, at least one.
+    pub fn new(times: &[f64]) -> Result<Self, String> {
+        if times.is_empty() {
+            return Err("no instant given for the Figure 9 snapshots".into());
+        }
+        if let Some(t) = times.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+            return Err(format!(
+                "Figure 9 instants must be finite times >= 0 s, got {t}"
+            ));
+        }
+        if times.windows(2).any(|w| w[1] <= w[0]) {
+            return Err(format!("Figure 9 instants must increase, got {times:?}"));
+        }
+        Ok(Figure9Capture {
+            times: times.to_vec(),
+            snaps: vec![None; times.len()],
+            failure: None,
+            body_names: Vec::new(),
+        })
+    }
+
+    /// Takes the snapshots due at this state.
+    pub fn check(&mut self, sim: &Simulation, kind: CheckPoint) {
+        if self.body_names.is_empty() {
+            self.body_names = sim.body_names();
+        }
+        if kind == CheckPoint::Failure {
+            self.failure = Some(sim.particle_snapshot());
+            return;
+        }
+        let t = sim.time();
+        let mut snap = None;
+        for (k, ti) in self.times.iter().enumerate() {
+            if self.snaps[k].is_none() && t >= ti - 1e-9 * ti.max(1.0) {
+                let s = snap.get_or_insert_with(|| sim.particle_snapshot());
+                self.snaps[k] = Some(s.clone());
+            }
+        }
+    }
+
+    /// The body names of the run (empty before the first check).
+    pub fn body_names(&self) -> &[String] {
+        &self.body_names
+    }
+
+    /// One panel per instant. An instant after the time a failed run stopped gets the state
+    /// where it stopped (`stopped`); an instant the run did not reach otherwise is an error.
+    pub fn finish(self, report: &Case3Report) -> Result<Vec<Figure9Panel>, String> {
+        self.times
+            .iter()
+            .zip(self.snaps)
+            .map(|(&t, snap)| match (snap, &self.failure) {
+                (Some(s), _) => Ok(Figure9Panel {
+                    instant: t,
+                    snapshot: s,
+                    stopped: false,
+                }),
+                (None, Some(f)) => Ok(Figure9Panel {
+                    instant: t,
+                    snapshot: f.clone(),
+                    stopped: true,
+                }),
+                (None, None) => Err(format!(
+                    "{}: the run ended at {} s, before the Figure 9 instant {t} s",
+                    report.scene, report.end_time
+                )),
+            })
+            .collect()
+    }
+}
+
+/// A column of Figure 9: a heading, a short tag for file names, its panels (one per instant,
+/// the same instants in every column) and the failure message of its run, if any.
+#[derive(Clone, Debug)]
+pub struct Figure9Column {
+    pub heading: String,
+    pub tag: String,
+    pub panels: Vec<Figure9Panel>,
+    pub failure: Option<String>,
+}
+
+/// `t` as a short file-name part: two decimals, three when needed (0.07 -> "0.07",
+/// 0.345 -> "0.345").
+fn time_tag(t: f64) -> String {
+    let three = format!("{t:.3}");
+    match three.strip_suffix('0') {
+        Some(two) => two.to_string(),
+        None => three,
+    }
+}
+
+/// Writes Figure 9: `dir/NAME.png`, the columns side by side and one row per instant, and
+/// `dir/NAME_TAG_tT.png` for every panel; all drawn with one frame (same position, scale and
+/// depth shading) seen by `camera`, fitted to the bulk of the bodies (pieces thrown far away
+/// are left out and counted in the titles); with `detail`, also `dir/NAME_DETAILTAG.png`, the same grid
+/// of the particles inside the detail's box only. Returns the paths written, the composite
+/// first. `title` and `subtitle` head the composites. Errors: no column, columns of different
+/// instants, empty or non-finite snapshots, a detail box without particles, a directory or file
+/// that cannot be written.
+#[allow(clippy::too_many_arguments)]
+pub fn write_figure9(
+    dir: &Path,
+    name: &str,
+    title: &str,
+    subtitle: &str,
+    body_names: &[String],
+    columns: &[Figure9Column],
+    camera: Camera,
+    detail: Option<&Figure9Detail>,
+) -> Result<Vec<PathBuf>, String> {
+    let first = columns
+        .first()
+        .ok_or_else(|| "Figure 9 needs at least one column".to_string())?;
+    let instants: Vec<f64> = first.panels.iter().map(|p| p.instant).collect();
+    if instants.is_empty() {
+        return Err("Figure 9 needs at least one instant".into());
+    }
+    for c in columns {
+        let other: Vec<f64> = c.panels.iter().map(|p| p.instant).collect();
+        if other != instants {
+            return Err(format!(
+                "Figure 9 column `{}` has the instants {other:?}, not {instants:?}",
+                c.heading
+            ));
+        }
+    }
+    if name.is_empty() || name.contains(['/', '\\']) {
+        return Err(format!(
+            "Figure 9 name `{name}` must be a non-empty file name stem"
+        ));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    let snaps: Vec<&ParticleSnapshot> = columns
+        .iter()
+        .flat_map(|c| c.panels.iter().map(|p| &p.snapshot))
+        .collect();
+    let frame = Frame3d::fit_bulk(camera, &snaps)?;
+    let label = |c: &Figure9Column, p: &Figure9Panel, variant: bool| {
+        let mut notes: Vec<String> = Vec::new();
+        if let Some(n) = figure9_note(p.instant) {
+            notes.push(format!("paper at {} s: {n}", time_tag(p.instant)));
+        }
+        if p.stopped {
+            // "particles overlap at t = ... (step ...): ..." -> "particles overlap".
+            let why = c
+                .failure
+                .as_deref()
+                .and_then(|m| m.split([':', '(']).next())
+                .map(|m| m.split(" at t =").next().unwrap_or(m).trim())
+                .unwrap_or("failure");
+            notes.push(format!(
+                "run stopped at {:.3} s ({why}): last state",
+                p.snapshot.time
+            ));
+        }
+        Label3d {
+            body_names: body_names.to_vec(),
+            variant: if variant {
+                c.heading.clone()
+            } else {
+                String::new()
+            },
+            note: if notes.is_empty() {
+                None
+            } else {
+                Some(notes.join("\n"))
+            },
+        }
+    };
+    let composite = dir.join(format!("{name}.png"));
+    let mut written = vec![composite.clone()];
+    let grid = Grid3d {
+        title: title.to_string(),
+        subtitle: subtitle.to_string(),
+        columns: columns.iter().map(|c| c.heading.clone()).collect(),
+        cells: (0..instants.len())
+            .map(|r| {
+                columns
+                    .iter()
+                    .map(|c| (&c.panels[r].snapshot, label(c, &c.panels[r], false)))
+                    .collect()
+            })
+            .collect(),
+    };
+    write_grid_png_3d(&composite, &grid, &frame)?;
+    if let Some(d) = detail {
+        let frame = Frame3d::fit_clipped(camera, &snaps, Some(d.clip))?;
+        let path = dir.join(format!("{name}_{}.png", d.tag));
+        let grid = Grid3d {
+            title: format!("{title}; {}", d.description),
+            ..grid.clone()
+        };
+        write_grid_png_3d(&path, &grid, &frame)?;
+        written.push(path);
+    }
+    for c in columns {
+        for p in &c.panels {
+            let path = dir.join(format!("{name}_{}_t{}.png", c.tag, time_tag(p.instant)));
+            write_png_3d(&path, &p.snapshot, &label(c, p, true), &frame)?;
+            written.push(path);
+        }
+    }
+    Ok(written)
 }

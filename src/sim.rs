@@ -24,6 +24,9 @@ pub struct ParticleSnapshot {
     pub velocity: Vec<[f64; 3]>,
     pub surface: Vec<bool>,
     pub broken_bonds: Vec<u32>,
+    /// Held by a boundary condition on at least one axis (supports, clamps); empty = none.
+    #[serde(default)]
+    pub fixed: Vec<bool>,
 }
 
 /// The evolving state of a simulation as plain data (serde): FMU state, checkpoints.
@@ -280,6 +283,7 @@ impl Simulation {
                 velocity: w.p.v.iter().map(to3).collect(),
                 surface: w.contact.surface.clone(),
                 broken_bonds: (0..n).map(|i| w.broken_bonds_of(i)).collect(),
+                fixed: w.p.fix.iter().map(|&f| f != 0).collect(),
             }
         })
     }

@@ -279,3 +279,46 @@ fn scenes_into_an_unusable_directory_names_the_path_and_the_reason() {
     );
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn case3_figure9_options_are_checked_before_the_runs() {
+    let d = scratch("figure9");
+    let file = write(&d, "a_file", "x");
+    let bad = file.join("fig");
+    let ok = d.join("fig");
+    let e = fails(&["case3", "--figure9", bad.to_str().unwrap()], 5.0);
+    assert!(
+        e.contains(bad.to_str().unwrap()) && e.contains("Not a directory"),
+        "{e}"
+    );
+    let dir = ok.to_str().unwrap();
+    for (times, want) in [
+        ("0.7,0.6", "must increase"),
+        ("0.1,NaN", "finite times"),
+        ("-0.1", "finite times"),
+    ] {
+        let arg = format!("--figure9-times={times}");
+        let e = fails(&["case3", "--figure9", dir, &arg], 5.0);
+        assert!(e.contains(want), "{times}: {e}");
+    }
+    let e = fails(
+        &[
+            "case3",
+            "--figure9",
+            dir,
+            "--end",
+            "1",
+            "--figure9-times",
+            "0.5,1.7",
+        ],
+        5.0,
+    );
+    assert!(e.contains("after the end of the run"), "{e}");
+    // Both columns are needed: --fractured-contact picks one.
+    let e = fails(
+        &["case3", "--figure9", dir, "--fractured-contact", "on"],
+        5.0,
+    );
+    assert!(e.contains("cannot be used with"), "{e}");
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -99,6 +99,18 @@ enum Cmd {
         /// Write ParaView (VTU + PVD) and PNG snapshots every 0.1 s into this directory.
         #[arg(long)]
         snapshots: Option<PathBuf>,
+        /// Write the paper's Figure 9 into this directory: 3D views of the run without (left) and
+        /// with (right) contact between fractured surfaces at --figure9-times, as NAME.png (both
+        /// columns, one row per instant) and NAME_without_tT.png / NAME_with_tT.png. Runs both
+        /// variants (of --scene too: its fractured_surfaces is set off, then on).
+        #[arg(long, conflicts_with = "fractured_contact")]
+        figure9: Option<PathBuf>,
+        /// Instants of --figure9 (s), increasing, comma separated (default: the paper's).
+        #[arg(long, value_delimiter = ',', default_values_t = [0.07, 0.6, 0.7, 1.0, 1.7])]
+        figure9_times: Vec<f64>,
+        /// File name stem of the --figure9 images.
+        #[arg(long, default_value = "figure9")]
+        figure9_name: String,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
@@ -331,9 +343,15 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             scene: scene_file,
             fractured_contact,
             snapshots,
+            figure9,
+            figure9_times,
+            figure9_name,
             json,
         } => {
-            use mps_solid::case3::{case3_report, case3_scene, case3_text};
+            use mps_solid::case3::{
+                case3_report_with, case3_scene, case3_text, CheckPoint, Figure9Capture,
+                Figure9Column,
+            };
             let from_file = match &scene_file {
                 Some(p) => Some(Scene::load(p).map_err(|e| e.to_string())?),
                 None => None,
@@ -351,8 +369,39 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     num(dp)
                 ));
             }
+            if let Some(dir) = &figure9 {
+                // Refuse bad instants and an unusable directory before any run.
+                Figure9Capture::new(&figure9_times)?;
+                std::fs::create_dir_all(dir)
+                    .map_err(|e| format!("cannot create the directory {}: {e}", dir.display()))?;
+                if let Some(t) = figure9_times.iter().find(|&&t| t > end + 1e-9) {
+                    return Err(format!(
+                        "--figure9-times {t} s is after the end of the run ({} s, --end)",
+                        num(end)
+                    ));
+                }
+            }
             let scenes: Vec<Scene> = match from_file {
+                Some(s) if figure9.is_some() => [false, true]
+                    .into_iter()
+                    .map(|fc| {
+                        // Two names, so that --snapshots keeps both series apart.
+                        let mut v = s.clone();
+                        v.solver.contact.fractured_surfaces = fc;
+                        let base = s.name.trim_end_matches("_no_fracture_contact");
+                        v.name = if fc {
+                            base.to_string()
+                        } else {
+                            format!("{base}_no_fracture_contact")
+                        };
+                        v
+                    })
+                    .collect(),
                 Some(s) => vec![s],
+                None if figure9.is_some() => [false, true]
+                    .into_iter()
+                    .map(|fc| case3_scene(dp, fc, ElasticModel::Corrected))
+                    .collect(),
                 None => {
                     let variants: Vec<bool> = match fractured_contact.as_deref() {
                         Some("on") => vec![true],
@@ -365,6 +414,16 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                         .collect()
                 }
             };
+            let subtitle = scenes.first().map(figure9_subtitle).unwrap_or_default();
+            let title = match &scene_file {
+                Some(p) => format!(
+                    "Case 3 variant {}: cube hits block (cf. the paper's Figure 9)",
+                    p.display()
+                ),
+                None => "Case 3: cube hits block (cf. the paper's Figure 9)".to_string(),
+            };
+            let mut columns = Vec::new();
+            let mut body_names = Vec::new();
             let mut reports = Vec::new();
             for mut scene in scenes {
                 scene.end_time = end;
@@ -374,7 +433,17 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 let pb = progress(end, &scene.name);
                 let mut snaps = Vec::new();
                 let mut next_snap = 0.0;
-                let r = case3_report(&scene, end, 0.01, 0.0025, |sim| {
+                let mut capture = match figure9 {
+                    Some(_) => Some(Figure9Capture::new(&figure9_times)?),
+                    None => None,
+                };
+                let r = case3_report_with(&scene, end, 0.01, 0.0025, |sim, kind| {
+                    if let Some(c) = capture.as_mut() {
+                        c.check(sim, kind);
+                    }
+                    if kind != CheckPoint::Regular {
+                        return;
+                    }
                     pb.set_position((sim.time() * 1e6) as u64);
                     if snapshots.is_some() && sim.time() >= next_snap - 1e-9 {
                         snaps.push(sim.particle_snapshot());
@@ -382,6 +451,19 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     }
                 })?;
                 pb.finish_and_clear();
+                if let Some(c) = capture {
+                    body_names = c.body_names().to_vec();
+                    let fc = scene.solver.contact.fractured_surfaces;
+                    columns.push(Figure9Column {
+                        heading: format!(
+                            "{} fractured-surface contact",
+                            if fc { "with" } else { "without" }
+                        ),
+                        tag: if fc { "with" } else { "without" }.to_string(),
+                        panels: c.finish(&r)?,
+                        failure: r.failure.clone(),
+                    });
+                }
                 if let Some(dir) = &snapshots {
                     let files = mps_solid::output::write_series(
                         dir,
@@ -399,6 +481,24 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     println!("{}", case3_text(&r));
                 }
                 reports.push(r);
+            }
+            if let Some(dir) = &figure9 {
+                let files = mps_solid::case3::write_figure9(
+                    dir,
+                    &figure9_name,
+                    &title,
+                    &subtitle,
+                    &body_names,
+                    &columns,
+                    mps_solid::output::Camera::default(),
+                    Some(&mps_solid::case3::figure9_foot()),
+                )?;
+                eprintln!(
+                    "wrote Figure 9 ({} images) into {}: {}",
+                    files.len(),
+                    dir.display(),
+                    files[0].display()
+                );
             }
             if json {
                 println!("{}", serde_json::to_string_pretty(&reports).unwrap());
@@ -444,4 +544,27 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
 /// The scene files of scenes/: the paper's cases at the paper's spacing.
 fn paper_scenes() -> Vec<Scene> {
     mps_solid::cases::paper_scenes()
+}
+
+/// The second title line of Figure 9: what the scene's options are.
+fn figure9_subtitle(s: &Scene) -> String {
+    let eps = s
+        .solver
+        .fracture_strain
+        .map_or("none".to_string(), |e| format!("{e}"));
+    let snake = |d: String| {
+        d.chars().fold(String::new(), |mut o, c| {
+            if c.is_uppercase() && !o.is_empty() {
+                o.push('_');
+            }
+            o.push(c.to_ascii_lowercase());
+            o
+        })
+    };
+    format!(
+        "dp {} m, eps_max {eps} (paper 0.2), {} operator, bond strain {}\nleft: no contact between fractured surfaces (crack faces pass through each other); right: with (they repel)",
+        s.particle_spacing,
+        snake(format!("{:?}", s.solver.model)),
+        snake(format!("{:?}", s.solver.bond_strain)),
+    )
 }

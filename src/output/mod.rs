@@ -1,5 +1,6 @@
-//! Particle snapshots to files: VTK XML `.vtu` (plus a `.pvd` time collection) for ParaView, and
-//! PNG scatter plots of a projection.
+//! Particle snapshots to files: VTK XML `.vtu` (plus a `.pvd` time collection) for ParaView, PNG
+//! scatter plots of a projection, and PNG 3D views (alone or in a grid, for the paper's
+//! Figure 9: `case3::write_figure9`).
 //!
 //! [`write_series`] writes a whole run: `NAME_NNNN.vtu` per snapshot, `NAME.pvd` listing them
 //! with their times, and `NAME_NNNN.png` when a [`View`] is given.
@@ -10,7 +11,10 @@ use std::path::{Path, PathBuf};
 
 use crate::sim::ParticleSnapshot;
 
-pub use self::png::{write_png, View};
+pub use self::png::{
+    broken_pairs, write_grid_png_3d, write_png, write_png_3d, Camera, Frame3d, Grid3d, Image3d,
+    Label3d, PanelGeometry, View,
+};
 pub use self::vtk::{write_vtu, PvdWriter};
 
 /// Writes `dir/name_NNNN.vtu` for each snapshot (NNNN = its index, zero padded to 4 digits),

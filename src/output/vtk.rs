@@ -23,7 +23,11 @@ pub(crate) fn check_lengths(snap: &ParticleSnapshot) -> Result<usize, String> {
         ("surface", snap.surface.len()),
         ("broken_bonds", snap.broken_bonds.len()),
     ];
-    for (name, len) in lens {
+    // `fixed` may be empty (no particle held; snapshots written before it existed).
+    let fixed = [("fixed", snap.fixed.len())]
+        .into_iter()
+        .filter(|&(_, len)| len != 0);
+    for (name, len) in lens.into_iter().chain(fixed) {
         if len != n {
             return Err(format!(
                 "snapshot has {n} positions but {len} entries in `{name}`"
@@ -40,7 +44,7 @@ fn flat(v: &[[f64; 3]]) -> Vec<f64> {
 /// The snapshot as a `vtkio` model: an unstructured grid with one VTK_VERTEX cell per particle
 /// and the point data arrays `body` (Int32, the active scalars), `displacement` (Float64 x 3,
 /// the active vectors, m), `velocity` (Float64 x 3, m/s), `surface` (UInt8, 1 on the contact
-/// surface) and `broken_bonds` (Int32).
+/// surface), `broken_bonds` (Int32) and `fixed` (UInt8, 1 where a boundary holds the particle).
 pub fn snapshot_to_vtk(snap: &ParticleSnapshot) -> Result<Vtk, String> {
     let n = check_lengths(snap)?;
     let to_i32 = |v: &[u32], what: &str| -> Result<Vec<i32>, String> {
@@ -60,6 +64,11 @@ pub fn snapshot_to_vtk(snap: &ParticleSnapshot) -> Result<Vtk, String> {
         ),
         Attribute::generic("broken_bonds", 1)
             .with_data(to_i32(&snap.broken_bonds, "broken bond count")?),
+        Attribute::generic("fixed", 1).with_data(
+            (0..n)
+                .map(|i| u8::from(snap.fixed.get(i).copied().unwrap_or(false)))
+                .collect::<Vec<u8>>(),
+        ),
     ];
     let piece = UnstructuredGridPiece {
         points: flat(&snap.position).into(),

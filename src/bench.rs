@@ -257,3 +257,215 @@ pub fn case3_row() -> Result<Row, String> {
         ),
     })
 }
+
+/// One row of the bending front (issue 7): an operator at one resolution of a bending case, its
+/// errors against the converged FEM (linearised model) and its run time per simulated period.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BendRow {
+    /// "plate2d" (GMS plate, plane strain) or "cantilever3d".
+    pub case: String,
+    pub model: String,
+    /// Particles through the thickness.
+    pub across: usize,
+    pub particles: usize,
+    /// Automatic step (s).
+    pub dt: f64,
+    /// Wall time of one solver step, measured over `timed_steps` steps (s).
+    pub step_s: f64,
+    /// Wall time to simulate one first-mode period at the automatic step (s).
+    pub wall_per_period_s: f64,
+    /// First frequency and static tip deflection relative to the FEM (-).
+    pub err_f1: f64,
+    pub err_tip: f64,
+}
+
+impl BendRow {
+    /// The larger of the two errors (-).
+    pub fn error(&self) -> f64 {
+        self.err_f1.abs().max(self.err_tip.abs())
+    }
+}
+
+/// The bending front: each operator (second_order; corrected at its default stabilisation 0.5)
+/// on the GMS plate at 4, 8, 16 particles through the thickness and the slender cantilever at
+/// 4 and 8 (`quick`: the plate at 4 and 8 only).
+pub fn bending_front(quick: bool) -> Result<Vec<BendRow>, String> {
+    use crate::bending::{
+        cantilever3d_scene, cantilever_reference, linear_bending, plate2d_scene, plate_reference,
+    };
+    let mut cases: Vec<(&str, usize)> = vec![("plate2d", 4), ("plate2d", 8)];
+    if !quick {
+        cases.extend([("plate2d", 16), ("cantilever3d", 4), ("cantilever3d", 8)]);
+    }
+    let mut rows = Vec::new();
+    for (case, n) in cases {
+        for (name, model) in [
+            ("second_order", ElasticModel::SecondOrder),
+            ("corrected", ElasticModel::Corrected),
+        ] {
+            let (scene, r) = if case == "plate2d" {
+                (plate2d_scene(n, model), plate_reference())
+            } else {
+                (cantilever3d_scene(n, model), cantilever_reference())
+            };
+            eprintln!("bench: {case} {name} n = {n}");
+            let lin = linear_bending(&scene).map_err(|e| e.to_string())?;
+            let mut sim = Simulation::new(&scene).map_err(|e| e.to_string())?;
+            let dt = sim.max_dt();
+            let timed = 100;
+            let t0 = Instant::now();
+            sim.advance_to(dt * timed as f64)
+                .map_err(|e| e.to_string())?;
+            let step_s = t0.elapsed().as_secs_f64() / sim.steps().max(1) as f64;
+            rows.push(BendRow {
+                case: case.into(),
+                model: name.into(),
+                across: n,
+                particles: lin.particles,
+                dt,
+                step_s,
+                wall_per_period_s: step_s / (dt * r.f1),
+                err_f1: lin.f1 / r.f1 - 1.0,
+                err_tip: lin.tip / r.tip - 1.0,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// The bending front as Markdown.
+pub fn bending_markdown(rows: &[BendRow], threads: usize) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "## Bending: run time against error (issue 7)\n");
+    let _ = writeln!(out, "Errors of the first frequency and the static tip deflection against the converged FEM (reference/plate2d_fem.json, reference/cantilever3d_fem.json), from the linearised model (src/linear.rs); run time = wall time of one first-mode period at the automatic step, from {threads} rayon threads timing 100 steps.\n");
+    let _ = writeln!(out, "| case | operator | across | particles | dt (s) | step (ms) | wall per period (s) | f1 error | tip error |");
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|");
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {:.3e} | {:.3} | {:.3} | {:+.2}% | {:+.2}% |",
+            r.case,
+            r.model,
+            r.across,
+            r.particles,
+            r.dt,
+            1e3 * r.step_s,
+            r.wall_per_period_s,
+            100.0 * r.err_f1,
+            100.0 * r.err_tip
+        );
+    }
+    // Cost to reach 1 %: interpolated in log-log between the rows that bracket it.
+    let _ = writeln!(out, "\nCost to reach 1 % (the larger of the two errors), interpolated log-log between the resolutions that bracket it:\n");
+    let mut keys: Vec<(String, String)> = Vec::new();
+    for r in rows {
+        let k = (r.case.clone(), r.model.clone());
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    for (case, model) in keys {
+        let rs: Vec<&BendRow> = rows
+            .iter()
+            .filter(|r| r.case == case && r.model == model)
+            .collect();
+        let mut found = None;
+        for w in rs.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            if a.error() > 0.01 && b.error() <= 0.01 {
+                let t = (0.01f64.ln() - a.error().ln()) / (b.error().ln() - a.error().ln());
+                found = Some(
+                    (a.wall_per_period_s.ln()
+                        + t * (b.wall_per_period_s.ln() - a.wall_per_period_s.ln()))
+                    .exp(),
+                );
+            }
+        }
+        let text = match (found, rs.first()) {
+            (Some(w), _) => format!("{w:.3} s per period"),
+            (None, Some(f)) if f.error() <= 0.01 => format!(
+                "below 1 % already at {} across ({:.3} s per period)",
+                f.across, f.wall_per_period_s
+            ),
+            _ => "not reached at the resolutions run".into(),
+        };
+        let _ = writeln!(out, "- {case}, {model}: {text}");
+    }
+    out
+}
+
+/// Draws the front (wall time per period against the larger error, log-log) as a PNG.
+pub fn write_front_png(rows: &[BendRow], path: &std::path::Path) -> Result<(), String> {
+    use plotters::prelude::*;
+    crate::output::png::ensure_font()?;
+    let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (xmin, xmax) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| {
+        (a.min(r.wall_per_period_s), b.max(r.wall_per_period_s))
+    });
+    let (ymin, ymax) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| {
+        (a.min(r.error()), b.max(r.error()))
+    });
+    if !(xmin > 0.0 && ymin > 0.0) {
+        return Err("the front needs positive run times and errors".into());
+    }
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "Bending: run time against error (FEM references)",
+            ("sans-serif", 22),
+        )
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(
+            (xmin / 2.0..xmax * 2.0).log_scale(),
+            (ymin / 2.0..ymax * 2.0).log_scale(),
+        )
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc("wall time per simulated period (s)")
+        .y_desc("max(|f1 error|, |tip error|)")
+        .y_label_formatter(&|v| format!("{:.1}%", 100.0 * v))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let colours = [
+        RGBColor(0, 114, 178),
+        RGBColor(213, 94, 0),
+        RGBColor(0, 158, 115),
+        RGBColor(204, 121, 167),
+    ];
+    let mut keys: Vec<(String, String)> = rows
+        .iter()
+        .map(|r| (r.case.clone(), r.model.clone()))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    for (k, (case, model)) in keys.iter().enumerate() {
+        let c = colours[k % colours.len()];
+        let pts: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|r| &r.case == case && &r.model == model)
+            .map(|r| (r.wall_per_period_s, r.error()))
+            .collect();
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                pts.clone(),
+                c.stroke_width(2),
+            )))
+            .map_err(|e| e.to_string())?
+            .label(format!("{case} {model}"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        chart
+            .draw_series(pts.iter().map(|&p| Circle::new(p, 4, c.filled())))
+            .map_err(|e| e.to_string())?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
+}

@@ -38,6 +38,7 @@ fn wall_layers(re_factor: f64) -> f64 {
 /// A clamped beam along x: material particles at the cell centres of x in [0, L], and
 /// `ceil(re/l0)` clamped layers at x = 0, -l0, -2 l0, the first on the clamped face (as in
 /// case 2); the section [-h/2, h/2] in the other directions, n cells across.
+#[allow(clippy::too_many_arguments)]
 fn beam_scene(
     name: &str,
     description: String,
@@ -214,6 +215,7 @@ pub fn linear_bending(scene: &Scene) -> Result<LinearBending, SceneError> {
 /// no singular corner, so the operator's own order of convergence shows), by shifted inverse
 /// iteration with the three rigid motions projected out. A zero-energy (hourglass) mode would
 /// come out as a frequency near zero.
+#[allow(clippy::needless_range_loop)]
 pub fn free_free_plate_f1(n: usize, model: ElasticModel) -> Result<f64, SceneError> {
     let e = |m: String| SceneError {
         field: String::new(),

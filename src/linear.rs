@@ -69,6 +69,7 @@ where
     }
 
     /// K v on the free degrees of freedom (N/m times the units of v).
+    #[allow(clippy::needless_range_loop)]
     pub fn stiffness_times(&mut self, v: &[Vect<D>]) -> Vec<Vect<D>> {
         let vmax = v.iter().map(|x| x.amax()).fold(0.0, f64::max);
         let n = v.len();
@@ -127,7 +128,7 @@ where
         for it in 1..=max_iter {
             let kp = self.stiffness_times(&p);
             let pkp = dot(&p, &kp);
-            if !(pkp > 0.0) {
+            if pkp.is_nan() || pkp <= 0.0 {
                 return Err(SimError::Invalid(format!(
                     "the stiffness is not positive definite on the free degrees of freedom (p^T K p = {pkp:.3e} at CG iteration {it}): a free rigid motion or a zero-energy mode"
                 )));

@@ -80,6 +80,13 @@ enum Cmd {
         /// Also write the Markdown into this file.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Only the bending front (GMS plate and slender cantilever, each operator, against
+        /// their FEM references), without the paper cases.
+        #[arg(long)]
+        bending: bool,
+        /// Write the bending front as a PNG (wall time against error).
+        #[arg(long)]
+        plot: Option<PathBuf>,
     },
     /// Run the paper's case 3 (cube hits a block; contact and fracture), both variants by default.
     Case3 {
@@ -301,8 +308,26 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 ExitCode::SUCCESS
             })
         }
-        Cmd::Bench { quick, out } => {
+        Cmd::Bench {
+            quick,
+            out,
+            bending,
+            plot,
+        } => {
             use mps_solid::bench;
+            let front = bench::bending_front(quick)?;
+            let front_md = bench::bending_markdown(&front, rayon::current_num_threads());
+            if let Some(p) = &plot {
+                bench::write_front_png(&front, p)?;
+            }
+            if bending {
+                println!("{front_md}");
+                if let Some(path) = out {
+                    std::fs::write(&path, front_md)
+                        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                }
+                return Ok(ExitCode::SUCCESS);
+            }
             let mut rows = Vec::new();
             for (case, dp, dt) in bench::plan(quick) {
                 eprintln!("bench: case {case}, dp {dp}, dt {dt:?}");
@@ -329,7 +354,9 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     .map(|&f| (f, bench::stability_probe(f)))
                     .collect()
             };
-            let md = bench::markdown(&rows, single, &stability, fmu, rayon::current_num_threads());
+            let md = bench::markdown(&rows, single, &stability, fmu, rayon::current_num_threads())
+                + "\n"
+                + &front_md;
             println!("{md}");
             if let Some(path) = out {
                 std::fs::write(&path, md)

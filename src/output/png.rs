@@ -89,7 +89,8 @@ fn surface_colour(body: u32) -> RGBColor {
 }
 
 /// Registers the bundled font with plotters once per process.
-fn ensure_font() -> Result<(), String> {
+/// Registers the bundled font for plotters (once); every PNG writer calls it first.
+pub fn ensure_font() -> Result<(), String> {
     static FONT_OK: OnceLock<Result<(), String>> = OnceLock::new();
     FONT_OK
         .get_or_init(|| {

@@ -58,6 +58,7 @@ impl<const D: usize> ElasticOperator<D>
 where
     Space: Dim<D>,
 {
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         model: ElasticModel,
         l0: f64,

@@ -261,7 +261,7 @@ fn quadratic_inverse(mom: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let svd = mom.clone().svd(true, true);
     let smax = svd.singular_values.max();
     let smin = svd.singular_values.min();
-    if !(smax > 0.0) || smin < QUADRATIC_MIN_CONDITION * smax {
+    if smax.is_nan() || smax <= 0.0 || smin < QUADRATIC_MIN_CONDITION * smax {
         return None;
     }
     svd.pseudo_inverse(0.0).ok()
@@ -429,8 +429,8 @@ where
                     let mut d = a_i * self.g[b];
                     if quad {
                         let hb = &self.h[b];
-                        for a in 0..D {
-                            d += b_i[a] * hb.row(a).transpose();
+                        for (a, ba) in b_i.iter().enumerate() {
+                            d += ba * hb.row(a).transpose();
                         }
                     }
                     let res = Self::residual(&du, &r0, &h, &g);

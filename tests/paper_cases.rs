@@ -51,7 +51,10 @@ fn case2_beam_first_frequency_within_3_percent_of_3d_fem() {
 #[test]
 fn scene_files_match_the_case_builders() {
     // scenes/*.json are the builders' output (regenerate with `mps scenes scenes`).
-    for sc in paper_scenes() {
+    for sc in paper_scenes()
+        .into_iter()
+        .chain(mps_solid::bending::benchmark_scenes())
+    {
         let path = format!("{}/scenes/{}.json", env!("CARGO_MANIFEST_DIR"), sc.name);
         let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
         let file = mps_solid::Scene::from_json(&text).unwrap();

@@ -568,9 +568,12 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
     }
 }
 
-/// The scene files of scenes/: the paper's cases at the paper's spacing.
+/// The scene files of scenes/: the paper's cases at the paper's spacing and the bending
+/// benchmarks of issue 7.
 fn paper_scenes() -> Vec<Scene> {
-    mps_solid::cases::paper_scenes()
+    let mut v = mps_solid::cases::paper_scenes();
+    v.extend(mps_solid::bending::benchmark_scenes());
+    v
 }
 
 /// The second title line of Figure 9: what the scene's options are.

@@ -309,7 +309,7 @@ pub fn cantilever_reference() -> BendingReference {
 /// The GMS benchmark as it is run in the SPH literature: the plate released from rest in its
 /// first mode shape, v_y = V_f c0 f(x) / f(L), c0 = sqrt(E / (3 (1 - 2 nu) rho)), no gravity;
 /// V_f = 0.001 keeps the amplitude at about 1 % of L, so the linear FEM frequency applies
-/// (the literature's V_f = 0.05 is a large-amplitude case). Two periods.
+/// (the literature's V_f = 0.05 is a large-amplitude case). Six periods.
 pub fn gms_plate_scene(n: usize, model: ElasticModel) -> Scene {
     use crate::scene::{BodyVelocity, ModeShape, ModeShapeProfile, VelocityField, VelocityProfile};
     let mut s = plate2d_scene(n, model);

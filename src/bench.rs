@@ -424,6 +424,8 @@ pub fn write_front_png(rows: &[BendRow], path: &std::path::Path) -> Result<(), S
         .map_err(|e| e.to_string())?;
     chart
         .configure_mesh()
+        .x_labels(6)
+        .y_labels(6)
         .x_desc("wall time per simulated period (s)")
         .y_desc("max(|f1 error|, |tip error|)")
         .y_label_formatter(&|v| format!("{:.1}%", 100.0 * v))

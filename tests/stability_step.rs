@@ -223,7 +223,7 @@ fn cantilever_deflected_to_half_its_length_is_stable_and_the_bound_follows_it() 
             );
             assert!(tip > 0.3 * len && tip_max < len, "tip {tip}");
             assert!(w.step_refreshes >= 3, "{} refreshes", w.step_refreshes);
-            assert!(w.step_refreshes <= w.steps / 200 + 1);
+            assert!(w.step_refreshes <= w.steps / 50 + 1);
             assert!(w.omega_elastic() >= omega0);
             // A restored state steps on bitwise as if it had not stopped: the refreshed bound
             // travels with the state (a fresh world starts from the reference bound).
@@ -237,4 +237,63 @@ fn cantilever_deflected_to_half_its_length_is_stable_and_the_bound_follows_it() 
             assert_eq!(fresh.state(), w.state());
         }
     }
+}
+
+/// tests/data/small2d.json (a 0.4 x 0.1 m strip, its left end held) with another material,
+/// gravity scaled by `g_scale`, no gravity ramp.
+fn small2d_variant(young: f64, poisson: f64, model: &str, g_scale: f64) -> mps_solid::Scene {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut v: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root.join("tests/data/small2d.json")).unwrap(),
+    )
+    .unwrap();
+    v["bodies"][0]["material"]["young"] = young.into();
+    v["bodies"][0]["material"]["poisson"] = poisson.into();
+    v["gravity"]["vector"] = serde_json::json!([0.0, -9.81 * g_scale]);
+    v["solver"] = serde_json::json!({ "model": model });
+    mps_solid::Scene::from_json(&v.to_string()).unwrap()
+}
+
+#[test]
+fn soft_strips_collapsing_under_load_run_at_the_default_safety() {
+    // Found by a random scan of 40 small2d/small3d variants (material, damping, speed, fracture,
+    // gravity): valid scenes that blew up at safety 0.8 or 1.0 and ran at 0.2. The strips sag
+    // far beyond their length and stiffen as they fold: omega_max rises by up to 30 % over the
+    // run. With the reference bound only, the first blew up at safety 0.8 (step 876); with
+    // refreshes at most every 200 steps too. What it took: refreshes at most every 50 steps,
+    // the growth since the last measurement assumed again for the next interval, and the
+    // deterministic start vector mixed into the warm start (a fold forming elsewhere is a new
+    // stiffest mode the old eigenvector does not see). Safety 0.85-1.0 still blew up in three of
+    // the found scenes, hence safety <= 0.8. A fifth scene (E = 1e3 Pa, nu = 0.499, corrected:
+    // a jelly strip collapsing under its own weight) runs at 0.8 to 2.2 s in one advance_to
+    // but blows up at 1.9 s when advanced by 4000 automatic steps: marginal, not in the list.
+    // (young, poisson, model, gravity scale, least growth of omega_max over the run)
+    let cases = [
+        (1e6, -0.5, "corrected", 100.0, 1.2),
+        (1e5, 0.0, "corrected", 1.0, 1.01),
+        (1e3, 0.499, "paper", 1.0, 1.15),
+    ];
+    for (young, poisson, model, g, growth) in cases {
+        let scene = small2d_variant(young, poisson, model, g);
+        let mut m = mps_solid::scene::Model::<2>::build(&scene).unwrap();
+        let w = &mut m.world;
+        let omega0 = w.omega_elastic();
+        let t_end = 4000.0 * w.max_dt();
+        w.advance_to(t_end)
+            .unwrap_or_else(|e| panic!("E {young} nu {poisson} {model} g x{g}: {e}"));
+        eprintln!(
+            "E {young} nu {poisson} {model} g x{g}: omega {omega0:.4e} -> {:.4e}, {} refreshes in {} steps",
+            w.omega_elastic(),
+            w.step_refreshes,
+            w.steps
+        );
+        assert!(w.omega_elastic() >= growth * omega0);
+    }
+    // Safety above 0.8 is refused by the scene validation.
+    let mut v = serde_json::to_value(small2d_variant(1e6, 0.3, "corrected", 1.0)).unwrap();
+    v["solver"]["safety"] = 0.9.into();
+    let e = mps_solid::Scene::from_json(&v.to_string())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("solver.safety") && e.contains("0.8"), "{e}");
 }

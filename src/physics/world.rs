@@ -103,10 +103,11 @@ pub const REFRESH_DEFORMATION: f64 = 0.1;
 pub const REFRESH_ITERATIONS: usize = 6;
 
 /// Fewest steps between two refreshes: a refresh costs REFRESH_ITERATIONS + 1 force
-/// evaluations, so this bounds its cost to 3.5 % of the steps' (the tangent stiffness of a
-/// cantilever bent to 0.9 of its length differs from the reference one by 0.05 % (corrected
-/// operator) and 0.5-1 % (paper operator): it changes slowly).
-pub const REFRESH_MIN_STEPS: u64 = 200;
+/// evaluations, so this bounds its cost to 14 % of the steps' (reached only by bodies that
+/// deform all the time: a soft strip collapsing under 100 g, 80 refreshes in 4800 steps; a
+/// cantilever bent to half its length: 1-3 % of the run time). 200 was too slow to follow a
+/// soft strip collapsing under 100 g (blow-up at safety 0.8, step 876); 20 costs 35 %.
+pub const REFRESH_MIN_STEPS: u64 = 50;
 
 /// A body to create: its material, particle positions and initial velocity.
 #[derive(Clone, Debug)]
@@ -157,8 +158,11 @@ pub struct StableStepState<const D: usize>
 where
     Space: Dim<D>,
 {
-    /// omega_max of the elastic model with the margin (rad/s).
+    /// omega_max of the elastic model the step uses (rad/s): the last measurement with the
+    /// margin, extrapolated over the next interval when it grew (see `maybe_refresh_step`).
     pub omega_elastic: f64,
+    /// The last measurement with the margin, not extrapolated (rad/s).
+    pub omega_measured: f64,
     /// Displacements at the last measurement (empty: the reference state).
     pub u_measured: Vec<Vect<D>>,
     /// Step count at the last measurement.
@@ -372,6 +376,7 @@ where
             omega2_contact: 0.0,
             stable: StableStepState {
                 omega_elastic: 0.0,
+                omega_measured: 0.0,
                 u_measured: Vec::new(),
                 step_measured: 0,
                 eig_t: Vec::new(),
@@ -395,6 +400,7 @@ where
         world.omega_reference = world.omega_elastic;
         world.stable = StableStepState {
             omega_elastic: world.omega_elastic,
+            omega_measured: world.omega_elastic,
             u_measured: Vec::new(),
             step_measured: 0,
             eig_t,
@@ -855,6 +861,8 @@ where
             && s.w0.iter().all(|w| w.is_finite())
             && s.stable_step.omega_elastic.is_finite()
             && s.stable_step.omega_elastic > 0.0
+            && s.stable_step.omega_measured.is_finite()
+            && s.stable_step.omega_measured > 0.0
             && s.stable_step.u_measured.iter().all(finite)
             && s.stable_step.eig_t.iter().all(finite)
             && s.stable_step
@@ -943,8 +951,53 @@ where
             }
             acc
         };
+        let fresh = || -> (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) {
+            (
+                (0..n).map(|i| bond_mix(i, 1)).collect(),
+                (0..n)
+                    .map(|i| {
+                        if rotational {
+                            let a = <Space as Dim<D>>::cross(&bond_mix(i, 2), &bond_mix(i, 3));
+                            <Space as Dim<D>>::ang_scale(a, 1.0 / self.l0)
+                        } else {
+                            <Space as Dim<D>>::ang_zero()
+                        }
+                    })
+                    .collect(),
+            )
+        };
         let (mut zt, mut zr): (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) = match warm {
-            Some((t0, r0)) => (t0.to_vec(), r0.to_vec()),
+            // The previous eigenvector plus as much of the deterministic start vector (in the
+            // mass norm): a mode that has become the stiffest elsewhere in the body (a fold
+            // forming) still has weight in the start.
+            Some((t0, r0)) => {
+                let (ft, fr) = fresh();
+                let nm = |zt: &[Vect<D>], zr: &[<Space as Dim<D>>::Ang]| -> f64 {
+                    (0..n)
+                        .map(|i| {
+                            self.p.mass[i] * zt[i].norm_squared()
+                                + self.p.inertia[i] * <Space as Dim<D>>::ang_dot(zr[i], zr[i])
+                        })
+                        .sum::<f64>()
+                        .sqrt()
+                };
+                let (a, b) = (nm(t0, r0), nm(&ft, &fr));
+                let (a, b) = (
+                    if a > 0.0 { 1.0 / a } else { 0.0 },
+                    if b > 0.0 { 1.0 / b } else { 0.0 },
+                );
+                (
+                    (0..n).map(|i| t0[i] * a + ft[i] * b).collect(),
+                    (0..n)
+                        .map(|i| {
+                            <Space as Dim<D>>::ang_add(
+                                <Space as Dim<D>>::ang_scale(r0[i], a),
+                                <Space as Dim<D>>::ang_scale(fr[i], b),
+                            )
+                        })
+                        .collect(),
+                )
+            }
             None => (
                 (0..n).map(|i| bond_mix(i, 1)).collect(),
                 (0..n)
@@ -1094,8 +1147,14 @@ where
                     self.measure_omega_max(80, Some((&t0, &r0)))
                 }
             };
+            // A body that stiffens as it deforms (a soft strip folding under its load) stiffens
+            // on until the next measurement: the growth since the last one is assumed again
+            // for the next interval (at most x1.5).
+            let measured = omega * (1.0 + OMEGA_MARGIN);
+            let growth = (measured / self.stable.omega_measured).clamp(1.0, 1.5);
             self.stable = StableStepState {
-                omega_elastic: (omega * (1.0 + OMEGA_MARGIN)).max(self.omega_reference),
+                omega_elastic: (measured * growth).max(self.omega_reference),
+                omega_measured: measured,
                 u_measured: self.p.u.clone(),
                 step_measured: self.steps,
                 eig_t,

@@ -1150,8 +1150,13 @@ where
             // A body that stiffens as it deforms (a soft strip folding under its load) stiffens
             // on until the next measurement: the growth since the last one is assumed again
             // for the next interval (at most x1.5).
-            let measured = omega * (1.0 + OMEGA_MARGIN);
-            let growth = (measured / self.stable.omega_measured).clamp(1.0, 1.5);
+            // Never below the last measurement: a few warm iterations from the mixed start can
+            // fall short of a value an earlier refresh converged to, and a bound that drops
+            // back lets the step grow past the limit (seen: small2d through the FMU, blow-up at
+            // step 671). A body that softens again keeps the shorter step.
+            let measured = (omega * (1.0 + OMEGA_MARGIN)).max(self.stable.omega_measured);
+            let growth =
+                (omega * (1.0 + OMEGA_MARGIN) / self.stable.omega_measured).clamp(1.0, 1.5);
             self.stable = StableStepState {
                 omega_elastic: (measured * growth).max(self.omega_reference),
                 omega_measured: measured,

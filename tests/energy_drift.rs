@@ -133,52 +133,73 @@ fn kinetic_staggered(w: &World<2>, dt: f64) -> f64 {
         .sum()
 }
 
+/// Kinetic + strain + contact (staggered) once the blocks have separated (mean over 2000 steps)
+/// relative to before the impact, for the blocks shifted by `shift` (m) along x.
+fn impact_error(safety: f64, shift: f64) -> (f64, f64) {
+    let mut w = collision(safety);
+    let mut s = w.state();
+    for (u, b) in s.u.iter_mut().zip(&w.p.body) {
+        if *b == 0 {
+            u[0] -= shift;
+        }
+    }
+    w.set_state(&s).unwrap();
+    let dt = w.max_dt();
+    let plain = |w: &World<2>| w.kinetic_energy() + w.strain_energy() + w.contact_energy();
+    let stag = |w: &World<2>| kinetic_staggered(w, dt) + w.strain_energy() + w.contact_energy();
+    let (e0, s0) = (plain(&w), stag(&w));
+    let mut touched = false;
+    let mut steps = 0;
+    loop {
+        w.step(dt).unwrap();
+        steps += 1;
+        let c = w.contact_pairs();
+        touched |= c > 0;
+        if touched && c == 0 {
+            break;
+        }
+        assert!(steps < 200_000, "the blocks never separated");
+    }
+    let (mut sum, mut ssum) = (0.0, 0.0);
+    for _ in 0..2000 {
+        w.step(dt).unwrap();
+        sum += plain(&w);
+        ssum += stag(&w);
+    }
+    (ssum / 2000.0 / s0 - 1.0, sum / 2000.0 / e0 - 1.0)
+}
+
 #[test]
 fn contact_impact_returns_its_energy() {
-    // Kinetic + strain + contact before the impact and once the blocks have separated (mean
-    // over the next 2000 steps). Plain: 1/2 m v^2; staggered: see `kinetic_staggered`.
-    for safety in [0.8, 0.4, 0.2] {
-        let mut w = collision(safety);
-        let dt = w.max_dt();
-        let plain = |w: &World<2>| w.kinetic_energy() + w.strain_energy() + w.contact_energy();
-        let stag = |w: &World<2>| kinetic_staggered(w, dt) + w.strain_energy() + w.contact_energy();
-        let (e0, s0) = (plain(&w), stag(&w));
-        let mut touched = false;
-        let mut steps = 0;
-        let mut smax = s0;
-        loop {
-            w.step(dt).unwrap();
-            steps += 1;
-            smax = smax.max(stag(&w));
-            let c = w.contact_pairs();
-            touched |= c > 0;
-            if touched && c == 0 {
-                break;
-            }
-            assert!(steps < 200_000, "the blocks never separated");
+    // The energy the scheme conserves (staggered kinetic + strain + contact) after the blocks
+    // have separated, against before the impact, over 4 phases of the first touch within a step
+    // (the blocks shifted by a quarter of the closing distance per step). Symplectic Euler's
+    // error of an impact is second order in dt. With the paper's spring (a kink at first touch)
+    // it had a random sign with the phase: at safety 1.0 / 0.8 / 0.4 / 0.2 mean +0.88 / -0.77 /
+    // -0.25 / -0.08 %, largest 5.7 / 1.9 / 0.80 / 0.15 % (8 phases). With the C1 onset of
+    // `contact::ONSET` it is phase-free and one-signed: -0.21 / -0.14 / -0.034 / -0.009 %.
+    // The issue asks for 0.2 % at the default safety (0.8); the bounds below are the measured
+    // values plus half, and the order in dt must be about 2 (factor 4 per halving: 3.5 to 4.5).
+    let mut mean = vec![];
+    for (safety, tol) in [(1.0, 0.0032), (0.8, 0.002), (0.4, 0.0006), (0.2, 0.00015)] {
+        let dt = collision(safety).max_dt();
+        let mut sum = 0.0;
+        for k in 0..4 {
+            let (stag, plain) = impact_error(safety, (k as f64 + 0.5) / 4.0 * 2.0 * dt);
+            eprintln!(
+                "safety {safety}, phase {k}/4: staggered {:+.4} %, plain {:+.4} %",
+                100.0 * stag,
+                100.0 * plain
+            );
+            assert!(
+                stag.abs() < tol,
+                "safety {safety}, phase {k}: energy changed by {stag} (bound {tol})"
+            );
+            sum += stag;
         }
-        let (mut sum, mut ssum) = (0.0, 0.0);
-        for _ in 0..2000 {
-            w.step(dt).unwrap();
-            sum += plain(&w);
-            ssum += stag(&w);
-        }
-        let (e1, s1) = (sum / 2000.0, ssum / 2000.0);
-        eprintln!(
-            "safety {safety}: plain {e0:.6e} -> {e1:.6e} J ({:+.3} %), staggered {s0:.6e} -> {s1:.6e} J ({:+.3} %), largest during contact {:+.3} %, {steps} steps",
-            100.0 * (e1 / e0 - 1.0),
-            100.0 * (s1 / s0 - 1.0),
-            100.0 * (smax / s0 - 1.0)
-        );
-        // The contact force switches on with a kink at r = l0 that the step does not resolve:
-        // measured -1.7 % (0.8), +0.56 % (0.4), +0.05 % (0.2). The issue's 0.2 % holds at
-        // safety 0.2 only; at the larger steps 2 % bounds today's contact law.
-        let tol = if safety <= 0.2 { 0.002 } else { 0.02 };
-        assert!(
-            (s1 / s0 - 1.0).abs() < tol && (e1 / e0 - 1.0).abs() < tol,
-            "safety {safety}: energy changed by {} (plain {})",
-            s1 / s0 - 1.0,
-            e1 / e0 - 1.0
-        );
+        mean.push(sum / 4.0);
     }
+    let order = mean[2] / mean[3];
+    eprintln!("mean error {mean:?}; 0.4 -> 0.2: factor {order:.2}");
+    assert!((3.5..4.5).contains(&order), "not second order: {order}");
 }

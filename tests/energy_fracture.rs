@@ -30,34 +30,47 @@ fn total(w: &World<2>) -> f64 {
 }
 
 /// Runs `t_end` seconds step by step; returns (energy after the first step, largest energy
-/// after it, broken pairs). The first step stops the held particles (their kinetic energy is
-/// taken out by the holder), so the reference is the energy after it.
-fn run(mut w: World<2>, t_end: f64) -> (f64, f64, u64) {
+/// after it, largest mean over 10 consecutive steps after it, broken pairs). The first step
+/// stops the held particles (their kinetic energy is taken out by the holder), so the
+/// reference is the energy after it.
+fn run(mut w: World<2>, t_end: f64) -> (f64, f64, f64, u64) {
     let dt = w.max_dt();
     w.step(dt).unwrap();
     let e0 = total(&w);
-    let mut emax = e0;
+    let mut e = vec![];
     while w.time < t_end {
         w.step(dt).unwrap();
-        emax = emax.max(total(&w));
+        e.push(total(&w));
     }
-    (e0, emax, w.broken_pairs)
+    let emax = e.iter().fold(e0, |a, &b| a.max(b));
+    let mean10 = e
+        .windows(10)
+        .map(|x| x.iter().sum::<f64>() / 10.0)
+        .fold(f64::MIN, f64::max);
+    (e0, emax, mean10, w.broken_pairs)
 }
 
 #[test]
 fn fracture_on_impact_creates_no_energy() {
     for vel in [[0.0, -5.0], [5.0, 0.0], [-5.0, 0.0]] {
-        let (e0, emax, broken) = run(small2d(vel, true), 5e-3);
+        let (e0, emax, mean10, broken) = run(small2d(vel, true), 5e-3);
         eprintln!(
-            "v = {vel:?}: E0 = {e0:.2} J, max E = {emax:.2} J ({:+.3} %), broken pairs {broken}",
-            100.0 * (emax / e0 - 1.0)
+            "v = {vel:?}: E0 = {e0:.2} J, max E = {emax:.2} J ({:+.3} %), largest 10-step mean {:+.3} %, broken pairs {broken}",
+            100.0 * (emax / e0 - 1.0),
+            100.0 * (mean10 / e0 - 1.0)
         );
         assert!(broken > 0, "the scenario must break bonds");
-        // Symplectic Euler's energy measured at the step ends fluctuates by O(dt omega) of the
-        // energy in the highest modes around a conserved shadow energy; 1 % covers that at the
-        // default safety (the defect added 60 %).
+        // Symplectic Euler's energy measured at the step ends oscillates from step to step by
+        // O(dt omega) of the energy in the highest modes (period ~4 steps at the default
+        // safety) around a conserved shadow energy; created energy (the defect: +60 % in 5 ms)
+        // persists. Measured with the C1 contact onset: single steps up to +1.2 % (v = -y), the
+        // 10-step mean never above -0.13 %.
         assert!(
-            emax <= e0 * 1.01,
+            mean10 <= e0 * 1.001,
+            "v = {vel:?}: energy rose from {e0} J to {mean10} J (10-step mean)"
+        );
+        assert!(
+            emax <= e0 * 1.02,
             "v = {vel:?}: energy rose from {e0} J to {emax} J"
         );
     }

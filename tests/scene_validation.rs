@@ -131,6 +131,12 @@ fn each_bad_field_is_named() {
             "solver.safety",
         ),
         (
+            // Issue 7: above 0.8 soft bodies collapsing under load blew up.
+            "safety 1",
+            Box::new(|v| v["solver"]["safety"] = 1.0.into()),
+            "solver.safety",
+        ),
+        (
             "bad name",
             Box::new(|v| v["name"] = "1 bad name".into()),
             "name",
@@ -161,7 +167,7 @@ fn each_bad_field_is_named() {
         (
             "safety 1e-300",
             Box::new(|v| v["solver"]["safety"] = 1e-300.into()),
-            "solver.safety: must be in [0.01, 1], got ",
+            "solver.safety: must be in [0.01, 0.8], got ",
         ),
         (
             "output_interval 1e-9",

@@ -93,9 +93,19 @@ where
                 );
                 *qi = <Space as Dim<D>>::advance(qi, wi, dt);
             }
-            // Motion due to this step's forces: an unstable mode grows by a factor > 1 per step
-            // in acceleration, while a rigid translation has none.
-            let moved = ((vn - *vi) * dt).norm();
+            // Motion due to this step's internal, contact and damping forces: an unstable mode
+            // grows by a factor > 1 per step in acceleration, while a rigid translation has
+            // none. Gravity and loads are given accelerations that cannot make a mode grow (a
+            // strong gravity moves a particle far in a step without any instability), and held
+            // axes follow their prescribed motion (a body thrown at its support is stopped
+            // there in one step): neither is counted.
+            let mut dv = (force[i] - *vi * (inp.damping * m)) * (dt / m);
+            for k in 0..D {
+                if flags & FIX_AXIS[k] != 0 {
+                    dv[k] = 0.0;
+                }
+            }
+            let moved = (dv * dt).norm();
             *bi = u8::from(
                 moved.is_nan()
                     || moved > inp.max_move

@@ -90,6 +90,25 @@ fn check_resolution<const D: usize>(
 /// stiffer than the reference one by 1-2 % (issue 7).
 pub const OMEGA_MARGIN: f64 = 0.03;
 
+/// Steps between two checks of whether the stable step must be measured again in the current
+/// configuration (the check is one pass over the bonds, about 1/20 of a force evaluation).
+pub const REFRESH_CHECK_EVERY: u64 = 20;
+
+/// The stable step is measured again in the current configuration when some intact bond's
+/// relative displacement has changed by more than this fraction of its reference length since
+/// the last measurement (a strain or a rotation of 10 %; a rigid translation does not count) (-).
+pub const REFRESH_DEFORMATION: f64 = 0.1;
+
+/// Power iterations of a refresh, warm-started from the previous eigenvector.
+pub const REFRESH_ITERATIONS: usize = 6;
+
+/// Fewest steps between two refreshes: a refresh costs REFRESH_ITERATIONS + 1 force
+/// evaluations, so this bounds its cost to 14 % of the steps' (reached only by bodies that
+/// deform all the time: a soft strip collapsing under 100 g, 80 refreshes in 4800 steps; a
+/// cantilever bent to half its length: 1-3 % of the run time). 200 was too slow to follow a
+/// soft strip collapsing under 100 g (blow-up at safety 0.8, step 876); 20 costs 35 %.
+pub const REFRESH_MIN_STEPS: u64 = 50;
+
 /// A body to create: its material, particle positions and initial velocity.
 #[derive(Clone, Debug)]
 pub struct BodyInit<const D: usize>
@@ -160,6 +179,31 @@ where
     pub motions: Vec<GroupMotion<D>>,
     pub loads: Vec<Vect<D>>,
     pub gravity: GravityLaw<D>,
+    /// The stable step as last measured (issue 7: it is measured again in the current
+    /// configuration as the body deforms), so a restored state steps on with the same dt.
+    pub stable_step: StableStepState<D>,
+}
+
+/// What the stable step's refresh carries from step to step.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "")]
+pub struct StableStepState<const D: usize>
+where
+    Space: Dim<D>,
+{
+    /// omega_max of the elastic model the step uses (rad/s): the last measurement with the
+    /// margin, extrapolated over the next interval when it grew (see `maybe_refresh_step`).
+    pub omega_elastic: f64,
+    /// The last measurement with the margin, not extrapolated (rad/s).
+    pub omega_measured: f64,
+    /// Displacements at the last measurement (empty: the reference state).
+    pub u_measured: Vec<Vect<D>>,
+    /// Step count at the last measurement.
+    pub step_measured: u64,
+    /// Last iterate of the power iteration (translations, rotations), the warm start of the
+    /// next refresh (empty: none).
+    pub eig_t: Vec<Vect<D>>,
+    pub eig_r: Vec<<Space as Dim<D>>::Ang>,
 }
 
 /// The simulated world.
@@ -189,6 +233,15 @@ where
     pub broken_pairs: u64,
     omega_max: f64,
     omega_elastic: f64,
+    /// omega_max of the elastic model in the reference configuration (with the margin).
+    omega_reference: f64,
+    /// Contact bound of omega^2 (rad^2/s^2).
+    omega2_contact: f64,
+    stable: StableStepState<D>,
+    /// Measurements of the stable step in the current configuration so far.
+    pub step_refreshes: u64,
+    /// Wall time spent checking and refreshing the stable step (s).
+    pub step_refresh_seconds: f64,
     frac_flag: Vec<u8>,
     scratch: ElasticScratch<D>,
     force: Vec<Vect<D>>,
@@ -403,6 +456,18 @@ where
             broken_pairs: 0,
             omega_max: 0.0,
             omega_elastic: 0.0,
+            omega_reference: 0.0,
+            omega2_contact: 0.0,
+            stable: StableStepState {
+                omega_elastic: 0.0,
+                omega_measured: 0.0,
+                u_measured: Vec::new(),
+                step_measured: 0,
+                eig_t: Vec::new(),
+                eig_r: Vec::new(),
+            },
+            step_refreshes: 0,
+            step_refresh_seconds: 0.0,
             frac_flag: Vec::new(),
             scratch: ElasticScratch::default(),
             force: vec![Vect::<D>::zeros(); n],
@@ -414,7 +479,17 @@ where
         // The Rayleigh quotient of the power iteration approaches omega_max^2 from below: in 3D
         // 80 iterations leave it ~0.5 % short in omega, and the current configuration (large
         // deflection) adds 1-2 %; the margin covers both so that safety = 1 is stable.
-        world.omega_elastic = world.measure_omega_max(80) * (1.0 + OMEGA_MARGIN);
+        let (omega, eig_t, eig_r) = world.measure_omega_max(80, None);
+        world.omega_elastic = omega * (1.0 + OMEGA_MARGIN);
+        world.omega_reference = world.omega_elastic;
+        world.stable = StableStepState {
+            omega_elastic: world.omega_elastic,
+            omega_measured: world.omega_elastic,
+            u_measured: Vec::new(),
+            step_measured: 0,
+            eig_t,
+            eig_r,
+        };
         // Contact adds stiffness that the reference state does not show: its bound is added to
         // the measured omega^2 (Weyl: lambda_max(A + B) <= lambda_max(A) + lambda_max(B)).
         let c2 = if world.contact.active
@@ -424,6 +499,7 @@ where
         } else {
             0.0
         };
+        world.omega2_contact = c2;
         world.omega_max = (world.omega_elastic.powi(2) + c2).sqrt();
         if let Some(o) = world.update_forces() {
             return Err(SimError::Invalid(format!(
@@ -591,6 +667,7 @@ where
         if let Some(o) = self.update_forces() {
             return Err(self.overlap_error(o));
         }
+        self.maybe_refresh_step();
         Ok(())
     }
 
@@ -608,13 +685,26 @@ where
         if h <= 0.0 {
             return Ok(0);
         }
-        let n = ((h / self.max_dt()) * (1.0 - 1e-12)).ceil().max(1.0) as u64;
-        let dt = h / n as f64;
-        for k in 1..=n {
-            let t_new = if k == n { t_end } else { t0 + k as f64 * dt };
-            self.step_to(t_new - self.time, t_new)?;
+        let mut taken = 0;
+        let (mut t0, mut h) = (t0, h);
+        'outer: loop {
+            let max_dt = self.max_dt();
+            let n = ((h / max_dt) * (1.0 - 1e-12)).ceil().max(1.0) as u64;
+            let dt = h / n as f64;
+            for k in 1..=n {
+                let t_new = if k == n { t_end } else { t0 + k as f64 * dt };
+                self.step_to(t_new - self.time, t_new)?;
+                taken += 1;
+                // The stable step was measured again and is shorter: the rest of the advance
+                // in equal steps of the new length.
+                if k < n && self.max_dt() < max_dt {
+                    t0 = self.time;
+                    h = t_end - t0;
+                    continue 'outer;
+                }
+            }
+            return Ok(taken);
         }
-        Ok(n)
     }
 
     /// Sets the displacement law of a group (m, s): linear from `motion.from` at `motion.t_from`
@@ -839,6 +929,7 @@ where
             motions: self.groups.iter().map(|g| g.motion).collect(),
             loads: self.loads.iter().map(|l| l.force).collect(),
             gravity: self.gravity,
+            stable_step: self.stable.clone(),
         }
     }
 
@@ -852,6 +943,9 @@ where
             || s.w0.len() != self.bonds.len()
             || s.motions.len() != self.groups.len()
             || s.loads.len() != self.loads.len()
+            || ![0, n].contains(&s.stable_step.u_measured.len())
+            || ![0, n].contains(&s.stable_step.eig_t.len())
+            || ![0, n].contains(&s.stable_step.eig_r.len())
         {
             return Err(SimError::Invalid(
                 "state does not belong to this scene (sizes differ)".into(),
@@ -863,7 +957,17 @@ where
             && s.u.iter().all(finite)
             && s.v.iter().all(finite)
             && s.w.iter().all(<Space as Dim<D>>::ang_finite)
-            && s.w0.iter().all(|w| w.is_finite()))
+            && s.w0.iter().all(|w| w.is_finite())
+            && s.stable_step.omega_elastic.is_finite()
+            && s.stable_step.omega_elastic > 0.0
+            && s.stable_step.omega_measured.is_finite()
+            && s.stable_step.omega_measured > 0.0
+            && s.stable_step.u_measured.iter().all(finite)
+            && s.stable_step.eig_t.iter().all(finite)
+            && s.stable_step
+                .eig_r
+                .iter()
+                .all(<Space as Dim<D>>::ang_finite))
         {
             return Err(SimError::Invalid(
                 "state holds non-finite positions, velocities or bond weights".into(),
@@ -897,6 +1001,10 @@ where
             l.rate = Vect::<D>::zeros();
         }
         self.gravity = s.gravity;
+        // The stable step as it was measured for this state; never below the reference one.
+        self.stable = s.stable_step.clone();
+        self.omega_elastic = self.stable.omega_elastic.max(self.omega_reference);
+        self.omega_max = (self.omega_elastic.powi(2) + self.omega2_contact).sqrt();
         if let Some(o) = self.update_forces() {
             return Err(self.overlap_error(o));
         }
@@ -904,10 +1012,18 @@ where
     }
 
     /// Largest eigenvalue of M^-1 K (translations and, in the paper model, rotations) by power
-    /// iteration on the model's own force function around the reference state, with the mass
-    /// inner product (so the operator is self-adjoint). Constrained degrees of freedom are
-    /// excluded. Returns omega_max (rad/s).
-    fn measure_omega_max(&self, iterations: usize) -> f64 {
+    /// iteration on the model's own force function, with the mass inner product (so the
+    /// operator is self-adjoint). Constrained degrees of freedom are excluded. `warm`: None
+    /// linearises about the reference state from the deterministic start vector; Some(start)
+    /// linearises about the current state (its tangent stiffness: geometric and material)
+    /// from `start` (the last iterate of the previous measurement). Returns omega_max (rad/s)
+    /// and the last iterate.
+    #[allow(clippy::type_complexity)]
+    fn measure_omega_max(
+        &self,
+        iterations: usize,
+        warm: Option<(&[Vect<D>], &[<Space as Dim<D>>::Ang])>,
+    ) -> (f64, Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) {
         let n = self.len();
         let mut probe = self.p.clone();
         let mut scratch = ElasticScratch::default();
@@ -937,17 +1053,75 @@ where
             }
             acc
         };
-        let mut zt: Vec<Vect<D>> = (0..n).map(|i| bond_mix(i, 1)).collect();
-        let mut zr: Vec<<Space as Dim<D>>::Ang> = (0..n)
-            .map(|i| {
-                if rotational {
-                    let a = <Space as Dim<D>>::cross(&bond_mix(i, 2), &bond_mix(i, 3));
-                    <Space as Dim<D>>::ang_scale(a, 1.0 / self.l0)
-                } else {
-                    <Space as Dim<D>>::ang_zero()
-                }
-            })
-            .collect();
+        let fresh = || -> (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) {
+            (
+                (0..n).map(|i| bond_mix(i, 1)).collect(),
+                (0..n)
+                    .map(|i| {
+                        if rotational {
+                            let a = <Space as Dim<D>>::cross(&bond_mix(i, 2), &bond_mix(i, 3));
+                            <Space as Dim<D>>::ang_scale(a, 1.0 / self.l0)
+                        } else {
+                            <Space as Dim<D>>::ang_zero()
+                        }
+                    })
+                    .collect(),
+            )
+        };
+        let (mut zt, mut zr): (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) = match warm {
+            // The previous eigenvector plus as much of the deterministic start vector (in the
+            // mass norm): a mode that has become the stiffest elsewhere in the body (a fold
+            // forming) still has weight in the start.
+            Some((t0, r0)) => {
+                let (ft, fr) = fresh();
+                let nm = |zt: &[Vect<D>], zr: &[<Space as Dim<D>>::Ang]| -> f64 {
+                    (0..n)
+                        .map(|i| {
+                            self.p.mass[i] * zt[i].norm_squared()
+                                + self.p.inertia[i] * <Space as Dim<D>>::ang_dot(zr[i], zr[i])
+                        })
+                        .sum::<f64>()
+                        .sqrt()
+                };
+                let (a, b) = (nm(t0, r0), nm(&ft, &fr));
+                let (a, b) = (
+                    if a > 0.0 { 1.0 / a } else { 0.0 },
+                    if b > 0.0 { 1.0 / b } else { 0.0 },
+                );
+                (
+                    (0..n).map(|i| t0[i] * a + ft[i] * b).collect(),
+                    (0..n)
+                        .map(|i| {
+                            <Space as Dim<D>>::ang_add(
+                                <Space as Dim<D>>::ang_scale(r0[i], a),
+                                <Space as Dim<D>>::ang_scale(fr[i], b),
+                            )
+                        })
+                        .collect(),
+                )
+            }
+            None => (
+                (0..n).map(|i| bond_mix(i, 1)).collect(),
+                (0..n)
+                    .map(|i| {
+                        if rotational {
+                            let a = <Space as Dim<D>>::cross(&bond_mix(i, 2), &bond_mix(i, 3));
+                            <Space as Dim<D>>::ang_scale(a, 1.0 / self.l0)
+                        } else {
+                            <Space as Dim<D>>::ang_zero()
+                        }
+                    })
+                    .collect(),
+            ),
+        };
+        // About the current state: the forces there, subtracted from the probe's.
+        let base = warm.map(|_| {
+            let mut f0 = vec![Vect::<D>::zeros(); n];
+            let mut t0 = vec![<Space as Dim<D>>::ang_zero(); n];
+            self.op
+                .forces(&self.p, &self.bonds, &mut scratch, &mut f0, &mut t0);
+            (f0, t0)
+        });
         let mask = |p: &Particles<D>, zt: &mut [Vect<D>], zr: &mut [<Space as Dim<D>>::Ang]| {
             for i in 0..n {
                 for k in 0..D {
@@ -974,18 +1148,30 @@ where
         for _ in 0..iterations {
             let nz = norm_m(&zt, &zr);
             if nz == 0.0 {
-                return 0.0;
+                return (0.0, zt, zr);
             }
             let eps = 1e-7 * self.l0;
             for i in 0..n {
                 zt[i] /= nz;
                 zr[i] = <Space as Dim<D>>::ang_scale(zr[i], 1.0 / nz);
-                probe.u[i] = zt[i] * eps;
-                probe.q[i] =
-                    <Space as Dim<D>>::advance(&<Space as Dim<D>>::identity(), &zr[i], eps);
+                if base.is_some() {
+                    probe.u[i] = self.p.u[i] + zt[i] * eps;
+                    probe.q[i] = <Space as Dim<D>>::advance(&self.p.q[i], &zr[i], eps);
+                } else {
+                    probe.u[i] = zt[i] * eps;
+                    probe.q[i] =
+                        <Space as Dim<D>>::advance(&<Space as Dim<D>>::identity(), &zr[i], eps);
+                }
             }
             self.op
                 .forces(&probe, &self.bonds, &mut scratch, &mut f, &mut t);
+            if let Some((f0, t0)) = &base {
+                for i in 0..n {
+                    f[i] -= f0[i];
+                    t[i] =
+                        <Space as Dim<D>>::ang_add(t[i], <Space as Dim<D>>::ang_scale(t0[i], -1.0));
+                }
+            }
             let mut next_t: Vec<Vect<D>> = (0..n)
                 .map(|i| f[i] * (-1.0 / (eps * self.p.mass[i])))
                 .collect();
@@ -1009,6 +1195,83 @@ where
             zt = next_t;
             zr = next_r;
         }
-        lambda.max(0.0).sqrt()
+        (lambda.max(0.0).sqrt(), zt, zr)
+    }
+
+    /// Every `REFRESH_CHECK_EVERY` steps (automatic step only), at least `REFRESH_MIN_STEPS`
+    /// after the last refresh: if some intact bond's relative
+    /// displacement has changed by more than `REFRESH_DEFORMATION` of its length since the
+    /// last measurement, measures omega_max again about the current state
+    /// (`REFRESH_ITERATIONS` power iterations from the previous eigenvector) and takes the
+    /// larger of it (with the margin) and the reference value. Returns whether it measured.
+    fn maybe_refresh_step(&mut self) -> bool {
+        if self.options.dt.is_some()
+            || !self.steps.is_multiple_of(REFRESH_CHECK_EVERY)
+            || (self.stable.step_measured > 0
+                && self.steps < self.stable.step_measured + REFRESH_MIN_STEPS)
+        {
+            return false;
+        }
+        let clock = std::time::Instant::now();
+        let n = self.len();
+        let u = &self.p.u;
+        let um = &self.stable.u_measured;
+        let lim2 = REFRESH_DEFORMATION * REFRESH_DEFORMATION;
+        let moved = |i: usize, j: usize| -> Vect<D> {
+            if um.is_empty() {
+                u[j] - u[i]
+            } else {
+                (u[j] - um[j]) - (u[i] - um[i])
+            }
+        };
+        let deformed = (0..n).any(|i| {
+            self.bonds.of(i).any(|b| {
+                self.bonds.w0[b] != 0.0
+                    && moved(i, self.bonds.nbr[b] as usize).norm_squared()
+                        > lim2 * self.bonds.r0[b].norm_squared()
+            })
+        });
+        if deformed {
+            let start = (
+                std::mem::take(&mut self.stable.eig_t),
+                std::mem::take(&mut self.stable.eig_r),
+            );
+            let warm = if start.0.len() == n && start.1.len() == n {
+                Some((&start.0[..], &start.1[..]))
+            } else {
+                None
+            };
+            let (omega, eig_t, eig_r) = match warm {
+                Some(w) => self.measure_omega_max(REFRESH_ITERATIONS, Some(w)),
+                // No previous eigenvector: a full measurement from the deterministic start.
+                None => {
+                    let (_, t0, r0) = self.measure_omega_max(0, None);
+                    self.measure_omega_max(80, Some((&t0, &r0)))
+                }
+            };
+            // A body that stiffens as it deforms (a soft strip folding under its load) stiffens
+            // on until the next measurement: the growth since the last one is assumed again
+            // for the next interval (at most x1.5).
+            // Never below the last measurement: a few warm iterations from the mixed start can
+            // fall short of a value an earlier refresh converged to, and a bound that drops
+            // back lets the step grow past the limit (seen: small2d through the FMU, blow-up at
+            // step 671). A body that softens again keeps the shorter step.
+            let measured = (omega * (1.0 + OMEGA_MARGIN)).max(self.stable.omega_measured);
+            let growth =
+                (omega * (1.0 + OMEGA_MARGIN) / self.stable.omega_measured).clamp(1.0, 1.5);
+            self.stable = StableStepState {
+                omega_elastic: (measured * growth).max(self.omega_reference),
+                omega_measured: measured,
+                u_measured: self.p.u.clone(),
+                step_measured: self.steps,
+                eig_t,
+                eig_r,
+            };
+            self.omega_elastic = self.stable.omega_elastic;
+            self.omega_max = (self.omega_elastic.powi(2) + self.omega2_contact).sqrt();
+            self.step_refreshes += 1;
+        }
+        self.step_refresh_seconds += clock.elapsed().as_secs_f64();
+        deformed
     }
 }

@@ -51,6 +51,12 @@ fn main() {
                 plate2d_scene(n, *model)
             };
             s.solver.stabilisation = *stab;
+            if let Ok(len) = std::env::var("LEN") {
+                // beam length beyond the clamp (m): the clamp's share of the error scales as 1/L
+                let len: f64 = len.parse().unwrap();
+                s.bodies[0].boxes[0].max[0] = len;
+                s.probes[0].point[0] = len;
+            }
             if let Ok(nu) = std::env::var("NU") {
                 s.bodies[0].material.poisson = nu.parse().unwrap();
             }

@@ -36,16 +36,18 @@ fn second_order_converges_at_second_order_on_the_free_free_plate() {
     );
 }
 
-/// The clamped GMS plate against the converged plane-strain FEM. The remaining error of the
-/// second-order operator is the clamped root (a corner singularity that converges as dp^1;
-/// the FEM needed graded meshes there): measured f1 -1.09 % / -0.59 % and static tip
-/// deflection +2.20 % / +1.19 % at 4 / 8 particles through the thickness. The tolerances are
-/// those figures with a margin of about a fifth; the corrected operator (stabilisation 0.5)
-/// is -4.05 % / +8.69 % at 4 (`mps bench --bending`).
+/// The clamped GMS plate against the converged plane-strain FEM (issue 7 targets: 2 % at 4 and
+/// 1 % at 8 particles through the thickness). The clamp layer samples the whole clamped face,
+/// its edges included (src/bending.rs). Measured with the second-order operator: f1 -0.31 % /
+/// -0.37 % and static tip deflection +0.61 % / +0.73 % at 4 / 8. The error left is the clamp's
+/// slip, O(dp): the root acts as if 0.2 dp further back (examples/clamp_probe.rs shows it on an
+/// axial bar whose exact field is quadratic), partly cancelled at 4 across by an error of the
+/// opposite sign. The tolerances are those figures with a margin of about a fifth, well inside
+/// the targets; before the clamp sampled the edges, the tip was +2.20 % / +1.19 %.
 #[test]
 fn clamped_plate_against_the_fem() {
     let r = plate_reference();
-    for (n, tol_f, tol_tip) in [(4, 0.013, 0.026), (8, 0.007, 0.014)] {
+    for (n, tol_f, tol_tip) in [(4, 0.004, 0.0075), (8, 0.0045, 0.009)] {
         let b = linear_bending(&plate2d_scene(n, ElasticModel::SecondOrder)).unwrap();
         let ef = b.f1 / r.f1 - 1.0;
         let et = b.tip / r.tip - 1.0;

@@ -100,41 +100,38 @@ impl<const D: usize> Bonds<D> {
     }
 }
 
-/// The bonds of a particle with a full neighbourhood on the lattice of spacing l0: the lattice
-/// points other than itself within re (12 in 2D and 32 in 3D for re = 2.1 l0).
-pub fn lattice_neighbours<const D: usize>(l0: f64, re: f64) -> usize {
+/// Distances of the points of the square/cubic lattice of spacing l0 (in `dimension` = 2 or 3
+/// dimensions) other than the origin within re, as the neighbour search counts them (r <= re,
+/// with room for round-off): the one enumeration behind the full-neighbourhood counts of the
+/// bond builder, the number density n0, the memory estimate and the resolution warnings.
+pub fn lattice_distances(dimension: usize, l0: f64, re: f64) -> Vec<f64> {
     let m = (re / l0).ceil() as i64;
     let side = (2 * m + 1) as usize;
-    (0..side.pow(D as u32))
-        .filter(|&code| {
+    (0..side.pow(dimension as u32))
+        .filter_map(|code| {
             let mut c = code;
             let mut r2 = 0.0;
-            for _ in 0..D {
+            for _ in 0..dimension {
                 let k = (c % side) as i64 - m;
                 c /= side;
                 r2 += (k as f64 * l0).powi(2);
             }
-            // Within re as the neighbour search counts (<=), with room for round-off.
-            r2 > 0.0 && r2 <= re * re * (1.0 + 1e-9)
+            (r2 > 0.0 && r2 <= re * re * (1.0 + 1e-9)).then(|| r2.sqrt())
         })
-        .count()
+        .collect()
+}
+
+/// The bonds of a particle with a full neighbourhood on the lattice of spacing l0: the lattice
+/// points other than itself within re (12 in 2D and 32 in 3D for re = 2.1 l0).
+pub fn lattice_neighbours<const D: usize>(l0: f64, re: f64) -> usize {
+    lattice_distances(D, l0, re).len()
 }
 
 /// The number density n0 of a particle with a full neighbourhood on the square/cubic lattice of
 /// spacing l0, Eq. (12).
 pub fn lattice_number_density<const D: usize>(l0: f64, re: f64) -> f64 {
-    let m = (re / l0).ceil() as i64;
-    let mut n = 0.0;
-    let side = (2 * m + 1) as usize;
-    for code in 0..side.pow(D as u32) {
-        let mut c = code;
-        let mut r2 = 0.0;
-        for _ in 0..D {
-            let k = (c % side) as i64 - m;
-            c /= side;
-            r2 += (k as f64 * l0).powi(2);
-        }
-        n += weight(r2.sqrt(), re);
-    }
-    n
+    lattice_distances(D, l0, re)
+        .into_iter()
+        .map(|r| weight(r, re))
+        .sum()
 }

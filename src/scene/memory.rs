@@ -38,23 +38,8 @@ pub struct Available {
 /// Lattice points other than the origin within `re_factor` spacings: the bonds of an interior
 /// particle (12 in 2D and 32 in 3D for re = 2.1 dp).
 pub fn lattice_neighbours(dimension: usize, re_factor: f64) -> u64 {
-    let r = re_factor.clamp(0.0, 16.0);
-    let k = r.floor() as i64;
-    let r2 = r * r;
-    let mut count = 0;
-    let range = -k..=k;
-    for i in range.clone() {
-        for j in range.clone() {
-            let zs = if dimension == 3 { range.clone() } else { 0..=0 };
-            for l in zs {
-                let d2 = (i * i + j * j + l * l) as f64;
-                if d2 > 0.0 && d2 <= r2 * (1.0 + 1e-12) {
-                    count += 1;
-                }
-            }
-        }
-    }
-    count
+    crate::physics::bonds::lattice_distances(dimension, 1.0, re_factor.clamp(0.0, 16.0)).len()
+        as u64
 }
 
 /// The memory a scene needs once built (an upper bound of the peak of the build).

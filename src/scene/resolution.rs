@@ -40,19 +40,10 @@ fn layers(re_factor: f64) -> usize {
 /// Bonds of a particle with a full neighbourhood on the lattice (counted as the bonds are:
 /// positive weight).
 fn full_neighbourhood<const D: usize>(re_factor: f64) -> usize {
-    let m = re_factor.ceil() as i64;
-    let side = (2 * m + 1) as usize;
-    (0..side.pow(D as u32))
-        .filter(|&code| {
-            let mut c = code;
-            let mut r2 = 0.0;
-            for _ in 0..D {
-                let k = (c % side) as i64 - m;
-                c /= side;
-                r2 += (k * k) as f64;
-            }
-            weight(r2.sqrt(), re_factor) > 0.0
-        })
+    // a pair exactly at re has weight 0: no bond
+    crate::physics::bonds::lattice_distances(D, 1.0, re_factor)
+        .into_iter()
+        .filter(|&r| weight(r, re_factor) > 0.0)
         .count()
 }
 

@@ -88,7 +88,7 @@ pub fn residual_by_column(n: usize) {
 }
 
 /// Case 2 (corrected and second_order) linearised, with its face-layer clamp on the cell
-/// centres (as shipped) and on the cell vertices: f1 and static max deflection against the FEM.
+/// vertices (as shipped) and on the cell centres: f1 and static max deflection against the FEM.
 #[allow(dead_code)]
 pub fn case2_clamps() {
     use mps_solid::bending::linear_bending;
@@ -97,13 +97,14 @@ pub fn case2_clamps() {
     for model in [ElasticModel::Corrected, ElasticModel::SecondOrder] {
         for vertex in [false, true] {
             let mut s = case2_scene(0.025, model, None, Support::Face);
-            if vertex {
+            if !vertex {
+                // the clamp rows on the cell centres: 9 x 9 at dp = 0.025
                 let dp = s.particle_spacing;
                 for a in 1..3 {
-                    s.bodies[0].boxes[1].min[a] -= 0.5 * dp;
-                    s.bodies[0].boxes[1].max[a] += 0.5 * dp;
-                    s.boundaries[0].region.min[a] -= 0.5 * dp;
-                    s.boundaries[0].region.max[a] += 0.5 * dp;
+                    s.bodies[0].boxes[1].min[a] += 0.5 * dp;
+                    s.bodies[0].boxes[1].max[a] -= 0.5 * dp;
+                    s.boundaries[0].region.min[a] += 0.5 * dp;
+                    s.boundaries[0].region.max[a] -= 0.5 * dp;
                 }
             }
             let b = linear_bending(&s).unwrap();

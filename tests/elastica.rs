@@ -1,7 +1,8 @@
 //! Large deflection of the slender 3D cantilever (issue 7): the nonlinear static tip under a
 //! dead gravity load against the elastica (reference/cantilever3d_fem.json, key "elastica"),
 //! found by dynamic relaxation (`bending::elastica_static`). The cheapest meaningful case:
-//! `second_order` at 4 particles across, the 30 % level (g = 216 m/s^2), about 13 s in release.
+//! `second_order` at 4 particles across, the 30 % level (g = 216 m/s^2), 13-20 s in release on
+//! one loaded core.
 use mps_solid::bending::{
     cantilever_reference, elastica_reference, elastica_static, RelaxOptions, G,
 };

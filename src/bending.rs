@@ -613,8 +613,8 @@ pub fn torsion_frequency_time(
         let p = w.p.x0[i];
         let om = omega_tip * (0.5 * std::f64::consts::PI * p[0].max(0.0) / length).sin();
         st.v[i] = Vect::<3>::new(0.0, -p[2], p[1]) * om;
-        for k in 0..3 {
-            if w.p.fix[i] & FIX_AXIS[k] != 0 {
+        for (k, bit) in FIX_AXIS.iter().enumerate() {
+            if w.p.fix[i] & bit != 0 {
                 st.v[i][k] = 0.0;
             }
         }

@@ -57,6 +57,10 @@ fn main() {
                 s.bodies[0].boxes[0].max[0] = len;
                 s.probes[0].point[0] = len;
             }
+            if let Ok(re) = std::env::var("RE") {
+                // re / l0 (the wall layers behind the face enter no second-order fit)
+                s.solver.re_factor = re.parse().unwrap();
+            }
             if let Ok(nu) = std::env::var("NU") {
                 s.bodies[0].material.poisson = nu.parse().unwrap();
             }

@@ -70,12 +70,11 @@ pub fn residual_by_column(n: usize) {
     let ku = lin.stiffness_times(&u);
     let dp = s.particle_spacing;
     let mut cols: std::collections::BTreeMap<i64, (f64, f64)> = Default::default();
-    for i in 0..w.len() {
-        let x = w.p.x0[i][0];
-        let key = (x / dp * 2.0).round() as i64;
+    for ((x, k), m) in w.p.x0.iter().zip(&ku).zip(&w.p.mass) {
+        let key = (x[0] / dp * 2.0).round() as i64;
         let e = cols.entry(key).or_default();
-        e.0 += ku[i][0] - w.p.mass[i] * (-9.81);
-        e.1 += w.p.mass[i] * 9.81;
+        e.0 += k[0] + m * 9.81;
+        e.1 += m * 9.81;
     }
     for (k, (r, m)) in cols.iter().skip(3).take(7).chain(cols.iter().rev().take(3)) {
         println!(

@@ -7,7 +7,9 @@ use crate::linear::{field_at, Linearised};
 use crate::physics::particles::FIX_AXIS;
 use crate::physics::{ElasticModel, Material, SolverOptions, Vect};
 use crate::scene::Model;
-use crate::scene::{Body, Boundary, BoundaryKind, Gravity, Probe, Region, Scene, SceneError};
+use crate::scene::{
+    Body, Boundary, BoundaryKind, Gravity, MirrorSpec, Probe, Region, Scene, SceneError,
+};
 
 /// The slender cantilever: rho 1000 kg/m^3, E 100 MPa, nu 0.3.
 pub const CANTILEVER_MATERIAL: Material = Material {
@@ -78,6 +80,33 @@ fn beam_scene(
         v
     };
     let hv = h + 0.5 * dp;
+    // The second-order model mirrors the beam across the clamped face: the clamp's layers at
+    // the images -dp/2, -3 dp/2, -5 dp/2 of the beam's first three, over its section, none on
+    // the face (docs/model.md, "Mirror faces"); the others hold the vertex-row grip.
+    let mirror = model == ElasticModel::SecondOrder;
+    let (clamp_box, clamp_region) = if mirror {
+        (
+            Region {
+                min: lo(-walls * dp, h),
+                max: hi(0.0, h),
+            },
+            Region {
+                min: lo(-walls * dp, h),
+                max: hi(-0.25 * dp, h),
+            },
+        )
+    } else {
+        (
+            Region {
+                min: lo(-(walls - 0.5) * dp, hv),
+                max: hi(0.5 * dp, hv),
+            },
+            Region {
+                min: lo(-(walls - 0.5) * dp, hv),
+                max: hi(0.25 * dp, hv),
+            },
+        )
+    };
     let mut tip = vec![length, 0.0];
     let mut g = vec![0.0, -G];
     if dim == 3 {
@@ -102,10 +131,7 @@ fn beam_scene(
                     min: lo(0.0, h),
                     max: hi(length, h),
                 },
-                Region {
-                    min: lo(-(walls - 0.5) * dp, hv),
-                    max: hi(0.5 * dp, hv),
-                },
+                clamp_box,
             ],
             velocity: None,
         }],
@@ -113,11 +139,16 @@ fn beam_scene(
             name: "clamp".into(),
             kind: BoundaryKind::Clamped,
             body: "beam".into(),
-            region: Region {
-                min: lo(-(walls - 0.5) * dp, hv),
-                max: hi(0.25 * dp, hv),
-            },
+            region: clamp_region,
             axes: None,
+            mirror: mirror.then(|| MirrorSpec {
+                point: vec![0.0; dim],
+                normal: {
+                    let mut n = vec![0.0; dim];
+                    n[0] = -1.0;
+                    n
+                },
+            }),
         }],
         loads: vec![],
         probes: vec![Probe {
@@ -134,14 +165,24 @@ fn beam_scene(
     }
 }
 
+/// How `beam_scene` clamps the beam for `model`, for the scene description.
+fn clamp_text(model: ElasticModel) -> &'static str {
+    if model == ElasticModel::SecondOrder {
+        "clamped by mirroring the beam across the face x = 0 (3 layers at the images of the beam's first three, none on the face)"
+    } else {
+        "clamped by a particle layer on the face x = 0 (n + 1 rows across, edges included) and 2 wall layers behind it"
+    }
+}
+
 /// The slender 3D cantilever with `n` particles across its 0.1 m square section.
 pub fn cantilever3d_scene(n: usize, model: ElasticModel) -> Scene {
     beam_scene(
         "cantilever3d",
         format!(
             "Slender 3D cantilever (issue 7): L = 1 m beyond the clamp, 0.1 x 0.1 m section ({n} particles across), \
-            rho 1000, E 100 MPa, nu 0.3, clamped by a particle layer on the face x = 0 (n + 1 rows each way, edges included) and 2 wall layers behind it, gravity -z applied suddenly. \
-            Reference: reference/cantilever3d_fem.json. Probe: the tip on the axis (x = L)."
+            rho 1000, E 100 MPa, nu 0.3, {}, gravity -z applied suddenly. \
+            Reference: reference/cantilever3d_fem.json. Probe: the tip on the axis (x = L).",
+            clamp_text(model)
         ),
         3,
         n,
@@ -158,7 +199,8 @@ pub fn plate2d_scene(n: usize, model: ElasticModel) -> Scene {
         "plate2d",
         format!(
             "Oscillating plate of Gray, Monaghan & Swift (2001), plane strain (issue 7): L = 0.2 m beyond the clamp, \
-            H = 0.02 m ({n} particles through the thickness), rho 1000, E 2 MPa, nu 0.3975, clamped by a particle layer on x = 0 (n + 1 rows, edges included) and 2 wall layers behind it. Reference: reference/plate2d_fem.json. Probe: the tip on the axis (x = L)."
+            H = 0.02 m ({n} particles through the thickness), rho 1000, E 2 MPa, nu 0.3975, {}. Reference: reference/plate2d_fem.json. Probe: the tip on the axis (x = L).",
+            clamp_text(model)
         ),
         2,
         n,

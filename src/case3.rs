@@ -161,6 +161,7 @@ pub fn case3_scene_with(
                 body: "block".into(),
                 region: region([-0.5 * bx, -by, -walls], [0.5 * bx, 0.0, -tol]),
                 axes: None,
+                mirror: None,
             },
             Boundary {
                 name: "top".into(),
@@ -168,6 +169,7 @@ pub fn case3_scene_with(
                 body: "block".into(),
                 region: region([-0.5 * bx, -by, bz + tol], [0.5 * bx, 0.0, bz + walls]),
                 axes: None,
+                mirror: None,
             },
         ]
         .into_iter()

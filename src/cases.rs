@@ -2,7 +2,9 @@
 //! the corrected closed form of case 1, beam theories and the 3D FEM reference of case 2.
 //! The scene files under `scenes/` are these builders at the paper's settings.
 use crate::physics::{ElasticModel, Material, SolverOptions};
-use crate::scene::{Analysis, Body, Boundary, BoundaryKind, Gravity, Probe, Region, Scene};
+use crate::scene::{
+    Analysis, Body, Boundary, BoundaryKind, Gravity, MirrorSpec, Probe, Region, Scene,
+};
 
 /// Standard gravity used by the paper (m/s^2).
 pub const G: f64 = 9.81;
@@ -46,6 +48,33 @@ pub fn case1_scene(dp: f64, model: ElasticModel, dt: Option<f64>) -> Scene {
     };
     let wall = wall_layers(opts.re_factor) * dp;
     let h = CASE1_HALF;
+    // The second-order model mirrors the column across its support face (layers at the images
+    // dp/2, 3 dp/2, 5 dp/2 of the column's, no layer on the face: docs/model.md, "Mirror
+    // faces"); the others hold a face layer at z = 0 and walls behind it.
+    let mirror = model == ElasticModel::SecondOrder;
+    let (support_box, support_region) = if mirror {
+        (
+            Region {
+                min: vec![-h, -h, 0.0],
+                max: vec![h, h, wall],
+            },
+            Region {
+                min: vec![-h, -h, 0.25 * dp],
+                max: vec![h, h, wall],
+            },
+        )
+    } else {
+        (
+            Region {
+                min: vec![-h, -h, -0.5 * dp],
+                max: vec![h, h, wall - 0.5 * dp],
+            },
+            Region {
+                min: vec![-h, -h, -0.25 * dp],
+                max: vec![h, h, wall],
+            },
+        )
+    };
     let probes = CASE1_STATIONS
         .iter()
         .map(|s| Probe {
@@ -56,14 +85,20 @@ pub fn case1_scene(dp: f64, model: ElasticModel, dt: Option<f64>) -> Scene {
         .collect();
     Scene {
         name: "case1_column".into(),
-        description: "Paper case 1 (section 3.1): 0.2 x 0.2 x 1.0 m column, rho 1000, E 10 MPa, nu 0.3, \
+        description: format!("Paper case 1 (section 3.1): 0.2 x 0.2 x 1.0 m column, rho 1000, E 10 MPa, nu 0.3, \
             hanging from a clamped support under its own weight, gravity ramped by Eq. (46) with T = end_time. \
-            Choices the paper leaves open: the support is 3 layers of clamped particles at z = 0, dp, 2 dp, the first on the \
-            support face (column particles at cell centres, 8 across the section); mass-proportional damping 20 1/s settles the \
+            Choices the paper leaves open: the support is 3 layers of clamped particles {} \
+            (column particles at cell centres, 8 across the section); mass-proportional damping 20 1/s settles the \
             residual axial oscillation so the end state is static (it does not change the static answer); \
             probes on the line x = 0.1 m, y = 0 (the paper's lines), displacement interpolated to the surface \
             with the corrected gradient."
-            .into(),
+            ,
+            if mirror {
+                "at z = dp/2, 3 dp/2, 5 dp/2, mirroring the column across the support face z = 0"
+            } else {
+                "at z = 0, dp, 2 dp, the first on the support face"
+            }
+        ),
         dimension: 3,
         particle_spacing: dp,
         solver: opts,
@@ -73,7 +108,7 @@ pub fn case1_scene(dp: f64, model: ElasticModel, dt: Option<f64>) -> Scene {
             material: CASE1_MATERIAL,
             boxes: vec![
                 Region { min: vec![-h, -h, -CASE1_LENGTH], max: vec![h, h, 0.0] },
-                Region { min: vec![-h, -h, -0.5 * dp], max: vec![h, h, wall - 0.5 * dp] },
+                support_box,
             ],
             velocity: None,
         }],
@@ -81,8 +116,9 @@ pub fn case1_scene(dp: f64, model: ElasticModel, dt: Option<f64>) -> Scene {
             name: "support".into(),
             kind: BoundaryKind::Clamped,
             body: "column".into(),
-            region: Region { min: vec![-h, -h, -0.25 * dp], max: vec![h, h, wall] },
+            region: support_region,
             axes: None,
+            mirror: mirror.then(|| MirrorSpec { point: vec![0.0; 3], normal: vec![0.0, 0.0, 1.0] }),
         }],
         loads: vec![],
         probes,
@@ -141,6 +177,58 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
         Support::Face => (-h, h),
         Support::Line => (-tol, tol),
     };
+    // The second-order model mirrors the beam across both end faces (docs/model.md, "Mirror
+    // faces"): the clamp's and the face support's layers at the images of the beam's first
+    // three, over its section, none on the faces; a line support stays a face layer.
+    let mirror = model == ElasticModel::SecondOrder;
+    let w3 = wall_layers(opts.re_factor) * dp;
+    let (clamp_box, clamp_region) = if mirror {
+        (
+            Region {
+                min: vec![-w3, -h, -h],
+                max: vec![0.0, h, h],
+            },
+            Region {
+                min: vec![-w3, -h, -h],
+                max: vec![-tol, h, h],
+            },
+        )
+    } else {
+        (
+            Region {
+                min: vec![-(walls + 0.5) * dp, -hv, -hv],
+                max: vec![0.5 * dp, hv, hv],
+            },
+            Region {
+                min: vec![-(walls + 0.5) * dp, -hv, -hv],
+                max: vec![tol, hv, hv],
+            },
+        )
+    };
+    let mirror_support = mirror && support == Support::Face;
+    let (support_box, support_region) = if mirror_support {
+        (
+            Region {
+                min: vec![l, -h, -h],
+                max: vec![l + w3, h, h],
+            },
+            Region {
+                min: vec![l + tol, -h, -h],
+                max: vec![l + w3, h, h],
+            },
+        )
+    } else {
+        (
+            Region {
+                min: vec![l - 0.5 * dp, -h, -h],
+                max: vec![l + 0.5 * dp, h, h],
+            },
+            Region {
+                min: vec![l - tol, -h, zmin],
+                max: vec![l + 0.5 * dp, h, zmax],
+            },
+        )
+    };
     Scene {
         name: "case2_beam".into(),
         description: format!(
@@ -149,11 +237,16 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
             mode). Choices the paper leaves open: beam particles at cell centres; each end face carries a layer of \
             particles on the face; the clamp is the layer x = 0 and {walls} wall layers behind it, on the cell vertices across the \
             section (its edges included); the support \
-            holds y and z of {} (layer x = L) and leaves x free. Probes on \
+            holds y and z of {} (layer x = L) and leaves x free{}. Probes on \
             the axis at x = 0.56 m (largest static deflection in the 3D FEM reference) and x = 0.5 m.",
             match support {
                 Support::Face => "the whole end face",
                 Support::Line => "the line z = 0",
+            },
+            if mirror {
+                " (second_order: instead, both mirror the beam across its end faces, layers at the images of the beam's first three, none on the faces)"
+            } else {
+                ""
             }
         ),
         dimension: 3,
@@ -165,8 +258,8 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
             material: CASE2_MATERIAL,
             boxes: vec![
                 Region { min: vec![0.0, -h, -h], max: vec![l, h, h] },
-                Region { min: vec![-(walls + 0.5) * dp, -hv, -hv], max: vec![0.5 * dp, hv, hv] },
-                Region { min: vec![l - 0.5 * dp, -h, -h], max: vec![l + 0.5 * dp, h, h] },
+                clamp_box,
+                support_box,
             ],
             velocity: None,
         }],
@@ -175,15 +268,17 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
                 name: "clamp".into(),
                 kind: BoundaryKind::Clamped,
                 body: "beam".into(),
-                region: Region { min: vec![-(walls + 0.5) * dp, -hv, -hv], max: vec![tol, hv, hv] },
+                region: clamp_region,
                 axes: None,
+                mirror: mirror.then(|| MirrorSpec { point: vec![0.0; 3], normal: vec![-1.0, 0.0, 0.0] }),
             },
             Boundary {
                 name: "support".into(),
                 kind: BoundaryKind::Pinned,
                 body: "beam".into(),
-                region: Region { min: vec![l - tol, -h, zmin], max: vec![l + 0.5 * dp, h, zmax] },
+                region: support_region,
                 axes: Some(vec!["y".into(), "z".into()]),
+                mirror: mirror_support.then(|| MirrorSpec { point: vec![l, 0.0, 0.0], normal: vec![1.0, 0.0, 0.0] }),
             },
         ],
         loads: vec![],

@@ -319,6 +319,7 @@ fn contact_and_fracture_do_not_depend_on_thread_count() {
                     max: vec![0.1, 0.4, 0.0],
                 },
                 axes: None,
+                mirror: None,
             }];
             let mut sim = Simulation::new(&sc).unwrap();
             sim.advance_to(0.04).unwrap();

@@ -40,6 +40,7 @@ fn undamped_cantilever_keeps_its_energy_over_100_periods() {
             members,
             axes: [true; 3],
             fix_rotation: true,
+            mirror: None,
         }],
         vec![],
         GravityLaw::Constant(Vect::<2>::zeros()),

@@ -52,6 +52,7 @@ fn bar_damped(
         members: m,
         axes: [true; 3],
         fix_rotation: true,
+        mirror: None,
     };
     let groups = vec![
         group("left", members(0..GRIP)),

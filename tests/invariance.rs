@@ -48,6 +48,7 @@ where
             members: clamped,
             axes: [true; 3],
             fix_rotation: true,
+            mirror: None,
         }]
     };
     World::new(

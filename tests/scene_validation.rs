@@ -370,6 +370,42 @@ fn each_bad_field_is_named() {
             }),
             "bodies[0].velocity.profiles[0].mode_shape: missing field `amplitude`",
         ),
+        // Issue 7: mirror faces.
+        (
+            "a mirror face with the corrected model",
+            Box::new(|v| {
+                v["boundaries"][0]["mirror"] =
+                    serde_json::json!({"point": [0, 0, 0], "normal": [-1, 0, 0]})
+            }),
+            "boundaries[0] ('clamp').mirror: mirror faces are a feature of the second_order model",
+        ),
+        (
+            "a zero mirror normal",
+            Box::new(|v| {
+                v["solver"]["model"] = "second_order".into();
+                v["boundaries"][0]["mirror"] =
+                    serde_json::json!({"point": [0, 0, 0], "normal": [0, 0, 0]})
+            }),
+            "boundaries[0] ('clamp').mirror.normal: must not be zero",
+        ),
+        (
+            "a mirror point of the wrong dimension",
+            Box::new(|v| {
+                v["solver"]["model"] = "second_order".into();
+                v["boundaries"][0]["mirror"] =
+                    serde_json::json!({"point": [0, 0], "normal": [-1, 0, 0]})
+            }),
+            "boundaries[0] ('clamp').mirror.point: must have 3 components",
+        ),
+        (
+            "a mirror face whose layers are not at the body's images (a face layer on the face)",
+            Box::new(|v| {
+                v["solver"]["model"] = "second_order".into();
+                v["boundaries"][0]["mirror"] =
+                    serde_json::json!({"point": [0, 0, 0], "normal": [-1, 0, 0]})
+            }),
+            "group 'clamp': no member is the mirror image of a free particle",
+        ),
         (
             "parts that overflow when summed",
             Box::new(|v| {

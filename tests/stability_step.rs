@@ -43,6 +43,7 @@ fn cantilever_g(nx: usize, g: f64, opts: SolverOptions) -> World<3> {
             members,
             axes: [true; 3],
             fix_rotation: true,
+            mirror: None,
         }],
         vec![],
         GravityLaw::Constant(Vect::<3>::new(0.0, 0.0, -g)),

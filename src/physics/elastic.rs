@@ -69,6 +69,7 @@ where
         bonds: &Bonds<D>,
         n_particles: usize,
         rigid: &[bool],
+        ghosts: &[super::second_order::Ghost<D>],
     ) -> Self {
         let mut op = ElasticOperator {
             model,
@@ -83,7 +84,7 @@ where
             second: SecondOrder::default(),
         };
         if model == ElasticModel::SecondOrder {
-            op.second = SecondOrder::new(bonds, l0, re_factor, n_particles, rigid);
+            op.second = SecondOrder::new(bonds, l0, re_factor, n_particles, rigid, ghosts);
         } else {
             (op.k_inv, op.span) = (0..n_particles)
                 .map(|i| op.shape_inverse_span(bonds, i))

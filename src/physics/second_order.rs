@@ -70,6 +70,32 @@ pub struct SecondOrder<const D: usize> {
     pub behind: Vec<bool>,
     /// re / l0, for the fit weights w(|s|) of the quantised reference vectors.
     pub re_factor: f64,
+    /// Ghosts of mirror faces, sorted by ghost index (`world::MirrorFace`).
+    pub ghosts: Vec<Ghost<D>>,
+}
+
+/// A group member at the mirror image of a free particle (its master) across a mirror face.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ghost<const D: usize> {
+    pub ghost: u32,
+    pub master: u32,
+    /// Per axis -1 (held by the group: odd, u_g = 2 u_group - u_m) or +1 (free: even, u_g = u_m).
+    pub parity: Vect<D>,
+}
+
+impl<const D: usize> Ghost<D> {
+    /// The ghost's displacement (or velocity) in the fits from its own prescribed value `own`
+    /// (the group's motion) and its master's `master`.
+    #[inline(always)]
+    pub fn reflect(&self, own: &Vect<D>, master: &Vect<D>) -> Vect<D> {
+        Vect::<D>::from_fn(|k, _| {
+            if self.parity[k] < 0.0 {
+                2.0 * own[k] - master[k]
+            } else {
+                master[k]
+            }
+        })
+    }
 }
 
 /// Scratch of the force passes.
@@ -81,6 +107,8 @@ pub struct SecondOrderScratch<const D: usize> {
     pub hess: Vec<[Mat<D>; D]>,
     /// dE/d(u_j - u_i) of each directed bond (N).
     pub dbond: Vec<Vect<D>>,
+    /// Displacements with the ghosts of a mirror clamp reflected (empty without ghosts).
+    pub ueff: Vec<Vect<D>>,
 }
 
 /// Number of basis functions of the quadratic fit: D linear + D (D + 1) / 2 quadratic.
@@ -109,7 +137,14 @@ where
 {
     /// Weights of all particles from their current (intact) bonds; `rigid` marks the particles
     /// of clamped groups.
-    pub fn new(bonds: &Bonds<D>, l0: f64, re_factor: f64, n: usize, rigid: &[bool]) -> Self {
+    pub fn new(
+        bonds: &Bonds<D>,
+        l0: f64,
+        re_factor: f64,
+        n: usize,
+        rigid: &[bool],
+        ghosts: &[Ghost<D>],
+    ) -> Self {
         let mut s = SecondOrder {
             g: vec![Vect::<D>::zeros(); bonds.len()],
             h: vec![Mat::<D>::zeros(); bonds.len()],
@@ -120,6 +155,7 @@ where
             rigid: rigid.to_vec(),
             behind: vec![false; n],
             re_factor,
+            ghosts: ghosts.to_vec(),
             n_ref: (0..n)
                 .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
                 .collect(),
@@ -131,10 +167,22 @@ where
                     .of(i)
                     .all(|b| s.rigid[bonds.nbr[b] as usize] || bonds.r0[b].norm() > near);
         }
+        // Ghosts enter the fits wherever they are: they carry the reflected field.
+        for g in ghosts {
+            s.behind[g.ghost as usize] = false;
+        }
         for i in 0..n {
             s.refresh(bonds, l0, i);
         }
         s
+    }
+
+    /// The ghost record of particle i, if it is one.
+    pub fn ghost_of(&self, i: usize) -> Option<&Ghost<D>> {
+        self.ghosts
+            .binary_search_by_key(&(i as u32), |g| g.ghost)
+            .ok()
+            .map(|k| &self.ghosts[k])
     }
 
     /// Weight of bond b in the fits and the residuals: w0, or 0 for a bond to a wall particle
@@ -342,6 +390,19 @@ where
         s.grad.resize(n, Mat::<D>::zeros());
         s.hess.resize(n, [Mat::<D>::zeros(); D]);
         let cell = l0 * l0 / 12.0;
+        if !self.ghosts.is_empty() {
+            s.ueff.clear();
+            s.ueff.extend_from_slice(&p.u);
+            for g in &self.ghosts {
+                let (gi, mi) = (g.ghost as usize, g.master as usize);
+                s.ueff[gi] = g.reflect(&p.u[gi], &p.u[mi]);
+            }
+        }
+        let uu: &[Vect<D>] = if self.ghosts.is_empty() {
+            &p.u
+        } else {
+            &s.ueff
+        };
         // Per-particle slices of the per-bond output (safe disjoint borrows for the gather).
         s.dbond.resize(bonds.len(), Vect::<D>::zeros());
         let mut slices: Vec<&mut [Vect<D>]> = Vec::with_capacity(n);
@@ -359,7 +420,7 @@ where
             .zip(par_iter_mut!(slices))
             .enumerate()
             .for_each(|(i, ((gr, he), out))| {
-                let ui = p.u[i];
+                let ui = uu[i];
                 let mut h = Mat::<D>::zeros();
                 let mut g = [Mat::<D>::zeros(); D];
                 let quad = self.quadratic[i];
@@ -368,7 +429,7 @@ where
                     if self.weight(bonds, b) == 0.0 {
                         continue;
                     }
-                    let du = p.u[bonds.nbr[b] as usize] - ui;
+                    let du = uu[bonds.nbr[b] as usize] - ui;
                     h += du * self.g[b].transpose();
                     if quad {
                         let hb = &self.h[b];
@@ -408,7 +469,7 @@ where
                         continue;
                     }
                     let r0 = bonds.r0[b];
-                    let du = p.u[bonds.nbr[b] as usize] - ui;
+                    let du = uu[bonds.nbr[b] as usize] - ui;
                     let res = Self::residual(&du, &r0, &h, &g);
                     let rho = Self::residual_conjugate(&res, &r0, cres * w0 / r0.norm_squared());
                     a_i -= rho * r0.transpose();
@@ -425,7 +486,7 @@ where
                         continue;
                     }
                     let r0 = bonds.r0[b];
-                    let du = p.u[bonds.nbr[b] as usize] - ui;
+                    let du = uu[bonds.nbr[b] as usize] - ui;
                     let mut d = a_i * self.g[b];
                     if quad {
                         let hb = &self.h[b];
@@ -446,6 +507,16 @@ where
             }
             *f_out = acc;
         });
+        // Chain rule through u_g(u_m, u_group): the master gets parity . f_g; the ghost keeps
+        // what its group's motion is conjugate to, 2 f_g on the held (odd) axes, so that the
+        // group's reaction (minus the sum over its members) is the force across the face.
+        for g in &self.ghosts {
+            let (gi, mi) = (g.ghost as usize, g.master as usize);
+            let fg = force[gi];
+            force[mi] += fg.component_mul(&g.parity);
+            force[gi] =
+                Vect::<D>::from_fn(|k, _| if g.parity[k] < 0.0 { 2.0 * fg[k] } else { 0.0 });
+        }
     }
 
     /// Strain energy of the current state (J), the same energy whose gradient `forces` is.
@@ -465,6 +536,11 @@ where
             mu * e.component_mul(e).sum() + 0.5 * lambda * e.trace().powi(2)
         };
         let mut total = 0.0;
+        let uu: &[Vect<D>] = if self.ghosts.is_empty() {
+            &p.u
+        } else {
+            &s.ueff
+        };
         for i in 0..p.len() {
             let Some(h) = s.grad.get(i) else { break };
             if self.rigid[i] {
@@ -488,7 +564,7 @@ where
                     continue;
                 }
                 let r0 = bonds.r0[b];
-                let du = p.u[bonds.nbr[b] as usize] - p.u[i];
+                let du = uu[bonds.nbr[b] as usize] - uu[i];
                 let res = Self::residual(&du, &r0, h, g);
                 let l2 = r0.norm_squared();
                 // mu/2 (|d|^2 + (d.n)^2), d = res / |r0|.

@@ -9,6 +9,7 @@ use super::elastic::{ElasticOperator, ElasticScratch};
 use super::integrate::{critical_step, symplectic_euler, StepInputs};
 use super::params::{Material, SolverOptions};
 use super::particles::{Particles, FIX_AXIS, FIX_ROT};
+pub use super::second_order::Ghost;
 use serde::{Deserialize, Serialize};
 
 /// Errors of the solver; each says what happened, when and where.
@@ -158,6 +159,24 @@ pub struct GroupInit {
     pub members: Vec<u32>,
     pub axes: [bool; 3],
     pub fix_rotation: bool,
+    /// The group as a mirror of the body across this face (second-order operator only).
+    pub mirror: Option<MirrorFace>,
+}
+
+/// A boundary face across which a group mirrors its body (m; the normal of any length).
+///
+/// The members at the mirror images of free particles become their ghosts: in the
+/// second-order operator's fits a ghost's displacement is its master's reflected, odd on the
+/// group's held axes about the group's motion (u_g = 2 u_group - u_m: zero relative
+/// displacement on the face) and even on the free ones (u_g = u_m: zero normal gradient). A
+/// clamp (all axes held) so holds u = 0 on the face, a face support with the normal axis free
+/// holds the tangential displacement and no normal stress, and the particles next to the face
+/// see the full stencil of the interior: no one-sided fit, no O(l0) slip of the face
+/// (docs/model.md, "Mirror faces").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MirrorFace {
+    pub point: [f64; 3],
+    pub normal: [f64; 3],
 }
 
 /// Everything that evolves in time, as plain data (FMU state, checkpoints). Restoring it and
@@ -368,6 +387,7 @@ where
         let materials: Vec<Material> = bodies.iter().map(|b| b.material).collect();
         let mut group_of = vec![u32::MAX; n];
         let mut gs = Vec::new();
+        let mut mirrors: Vec<(usize, MirrorFace, [bool; 3])> = Vec::new();
         for (gi, g) in groups.into_iter().enumerate() {
             for &i in &g.members {
                 let i = i as usize;
@@ -391,6 +411,9 @@ where
                     p.w[i] = <Space as Dim<D>>::ang_zero();
                 }
             }
+            if let Some(face) = g.mirror {
+                mirrors.push((gi, face, g.axes));
+            }
             gs.push(BoundaryGroup {
                 name: g.name,
                 members: g.members,
@@ -400,9 +423,15 @@ where
                 reaction: Vect::<D>::zeros(),
             });
         }
-        // Particles of clamped groups (all axes held): the second-order operator treats them as a
-        // rigid grip.
         let all_axes: u8 = FIX_AXIS.iter().take(D).fold(0, |a, b| a | b);
+        let names: Vec<String> = gs.iter().map(|g| g.name.clone()).collect();
+        let ghosts = find_ghosts(&p, l0, &group_of, &mirrors, &names, options.model)?;
+        for g in &ghosts {
+            // A ghost follows its master: it is moved by nothing else.
+            p.fix[g.ghost as usize] |= all_axes;
+        }
+        // Particles of clamped groups (all axes held) and ghosts: the second-order operator
+        // treats them as a rigid grip.
         let rigid: Vec<bool> = p.fix.iter().map(|f| f & all_axes == all_axes).collect();
         let op = ElasticOperator::new(
             options.model,
@@ -414,6 +443,7 @@ where
             &bonds,
             n,
             &rigid,
+            &ghosts,
         );
         let mut load_of = vec![u32::MAX; n];
         let mut ls = Vec::new();
@@ -866,12 +896,17 @@ where
         let mut g = super::dim::Mat::<D>::zeros();
         if self.op.model == super::params::ElasticModel::SecondOrder {
             let so = &self.op.second;
+            // A ghost carries its master's field reflected (as in the fits).
+            let fj = |j: usize| match so.ghost_of(j) {
+                Some(g) => g.reflect(&f(j), &f(g.master as usize)),
+                None => f(j),
+            };
             let mut q = Vect::<D>::zeros();
             for b in self.bonds.of(i) {
-                if self.bonds.w0[b] == 0.0 {
+                if so.weight(&self.bonds, b) == 0.0 {
                     continue;
                 }
-                let df = f(self.bonds.nbr[b] as usize) - fi;
+                let df = fj(self.bonds.nbr[b] as usize) - fi;
                 g += df * so.g[b].transpose();
                 q += df * d.dot(&(so.h[b] * d));
             }
@@ -1274,4 +1309,82 @@ where
         self.step_refresh_seconds += clock.elapsed().as_secs_f64();
         deformed
     }
+}
+
+/// The ghosts of the mirror faces: each member of a mirroring group at the mirror image (within
+/// 1e-6 l0) of a particle of the same body that belongs to no group. Errors: a mirror face with
+/// a model other than the second-order one (the others would treat the group as walls and
+/// silently differ), a degenerate normal, or a face that mirrors no particle (the group's
+/// layers are not at the mirror images of the body's: e.g. a face layer on the face).
+fn find_ghosts<const D: usize>(
+    p: &Particles<D>,
+    l0: f64,
+    group_of: &[u32],
+    mirrors: &[(usize, MirrorFace, [bool; 3])],
+    names: &[String],
+    model: super::params::ElasticModel,
+) -> Result<Vec<Ghost<D>>, SimError>
+where
+    Space: Dim<D>,
+{
+    let mut ghosts = Vec::new();
+    if mirrors.is_empty() {
+        return Ok(ghosts);
+    }
+    if model != super::params::ElasticModel::SecondOrder {
+        return Err(SimError::Invalid(format!(
+            "group '{}' has a mirror face, which only the second_order model uses (solver.model is {model:?}); remove the mirror or use second_order",
+            names[mirrors[0].0]
+        )));
+    }
+    // Free particles by their position on a grid of l0 / 4 relative to each face's point.
+    for &(gi, face, axes) in mirrors {
+        let point = Vect::<D>::from_fn(|k, _| face.point[k]);
+        let normal = Vect::<D>::from_fn(|k, _| face.normal[k]);
+        let len = normal.norm();
+        if !(len.is_finite() && len > 0.0 && point.iter().all(|c| c.is_finite())) {
+            return Err(SimError::Invalid(format!(
+                "group '{}': the mirror face needs a finite point and a non-zero finite normal",
+                names[gi]
+            )));
+        }
+        let normal = normal / len;
+        let key = |x: &Vect<D>| -> Vec<i64> {
+            (x - point)
+                .iter()
+                .map(|c| (c / l0 * 4.0).round() as i64)
+                .collect()
+        };
+        let mut free = std::collections::HashMap::new();
+        for (i, g) in group_of.iter().enumerate() {
+            if *g == u32::MAX {
+                free.insert(key(&p.x0[i]), i);
+            }
+        }
+        let parity = Vect::<D>::from_fn(|k, _| if axes[k] { -1.0 } else { 1.0 });
+        let before = ghosts.len();
+        for (i, g) in group_of.iter().enumerate() {
+            if *g != gi as u32 {
+                continue;
+            }
+            let image = p.x0[i] - normal * (2.0 * (p.x0[i] - point).dot(&normal));
+            if let Some(&m) = free.get(&key(&image)) {
+                if p.body[m] == p.body[i] && (p.x0[m] - image).norm() < 1e-6 * l0 {
+                    ghosts.push(Ghost {
+                        ghost: i as u32,
+                        master: m as u32,
+                        parity,
+                    });
+                }
+            }
+        }
+        if ghosts.len() == before {
+            return Err(SimError::Invalid(format!(
+                "group '{}': no member is the mirror image of a free particle of its body across the mirror face; place the group's layers at the mirror images of the body's (e.g. a box [-3 l0, 0] beside a body that starts at 0, over the same section)",
+                names[gi]
+            )));
+        }
+    }
+    ghosts.sort_by_key(|g| g.ghost);
+    Ok(ghosts)
 }

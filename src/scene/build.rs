@@ -218,6 +218,15 @@ where
                 members,
                 axes,
                 fix_rotation: g.kind != super::BoundaryKind::Pinned,
+                mirror: g.mirror.as_ref().map(|m| {
+                    let mut face = crate::physics::world::MirrorFace {
+                        point: [0.0; 3],
+                        normal: [0.0; 3],
+                    };
+                    face.point[..D].copy_from_slice(&m.point[..D]);
+                    face.normal[..D].copy_from_slice(&m.normal[..D]);
+                    face
+                }),
             });
         }
         let mut loads = Vec::new();

@@ -113,6 +113,26 @@ pub struct Boundary {
     /// Axes ("x", "y", "z") for pinned and prescribed groups; default all.
     #[serde(default)]
     pub axes: Option<Vec<String>>,
+    /// The boundary face the group mirrors its body across (second_order model only): the
+    /// group's layers sit at the mirror images of the body's particles (a box [-3 l0, 0] beside a
+    /// body that starts at 0, over the same section, with no layer on the face), and each acts
+    /// as its image's reflection, odd on the held axes and even on the free ones. A clamp so
+    /// holds u = 0 on the face and a face support with the normal axis free holds the
+    /// tangential displacement with no normal stress, both without the one-sided fits next to
+    /// the face (their O(l0) slip; docs/model.md, "Mirror faces"). Default: none, the group's
+    /// layers are a grip (a face layer on the face and walls behind it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mirror: Option<MirrorSpec>,
+}
+
+/// A plane: the boundary face of a mirror group.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MirrorSpec {
+    /// A point of the face (m), `dimension` components.
+    pub point: Vec<f64>,
+    /// The face's normal (any length, not zero), `dimension` components.
+    pub normal: Vec<f64>,
 }
 
 /// A load region: the particles of `body` inside `region` share an external force.
@@ -347,6 +367,19 @@ impl Scene {
             region(&format!("{f}.region"), &g.region, d)?;
             if self.boundaries[..k].iter().any(|o| o.name == g.name) {
                 return Err(err(format!("{f}.name"), "duplicate boundary name"));
+            }
+            if let Some(m) = &g.mirror {
+                vector(&format!("{f}.mirror.point"), &m.point, d)?;
+                vector(&format!("{f}.mirror.normal"), &m.normal, d)?;
+                if m.normal.iter().all(|c| *c == 0.0) {
+                    return Err(err(format!("{f}.mirror.normal"), "must not be zero"));
+                }
+                if self.solver.model != crate::physics::ElasticModel::SecondOrder {
+                    return Err(err(
+                        format!("{f}.mirror"),
+                        "mirror faces are a feature of the second_order model (solver.model); the other models would treat the layers as walls",
+                    ));
+                }
             }
             if let Some(axes) = &g.axes {
                 if axes.is_empty() {

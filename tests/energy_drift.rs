@@ -1,6 +1,8 @@
 //! Energy conservation of the undamped integrator (issue 7): a small 2D cantilever in free
 //! vibration keeps kinetic + strain energy to 0.1 % over 100 periods, and a contact impact
-//! between two blocks returns the energy it stored.
+//! between two blocks returns the energy it stored: the energy symplectic Euler conserves (its
+//! shadow energy) within 0.1 % at closing speeds of 0.5-16 m/s, the staggered energy within 0.2 %
+//! at 2 m/s, both at the default safety.
 mod common;
 use common::block;
 use mps_solid::physics::boundary::GravityLaw;
@@ -90,8 +92,8 @@ fn undamped_cantilever_keeps_its_energy_over_100_periods() {
     assert!(drift < 1e-3, "energy drift {drift} over 100 periods");
 }
 
-/// Two 8 x 8 blocks, 2 l0 apart, approaching at 1 m/s each along x; no gravity.
-fn collision(safety: f64) -> World<2> {
+/// Two 8 x 8 blocks, 2 l0 apart, closing at `closing` m/s (half each) along x; no gravity.
+fn collision(safety: f64, closing: f64) -> World<2> {
     let a: Vec<_> = block::<2>([8, 8, 1], L0)
         .into_iter()
         .map(|p| p - Vector2::new(4.5 * L0, 0.0))
@@ -112,7 +114,7 @@ fn collision(safety: f64) -> World<2> {
             safety,
             ..SolverOptions::default()
         },
-        vec![body("a", a, 1.0), body("b", b, -1.0)],
+        vec![body("a", a, 0.5 * closing), body("b", b, -0.5 * closing)],
         Vec::<GroupInit>::new(),
         vec![],
         GravityLaw::Constant(Vect::<2>::zeros()),
@@ -134,10 +136,26 @@ fn kinetic_staggered(w: &World<2>, dt: f64) -> f64 {
         .sum()
 }
 
-/// Kinetic + strain + contact (staggered) once the blocks have separated (mean over 2000 steps)
-/// relative to before the impact, for the blocks shifted by `shift` (m) along x.
-fn impact_error(safety: f64, shift: f64) -> (f64, f64) {
-    let mut w = collision(safety);
+/// Relative energy changes of an impact (-), after separation (mean over 2000 steps) against
+/// before it.
+struct Impact {
+    /// Staggered kinetic + strain + contact energy.
+    staggered: f64,
+    /// Plain kinetic + strain + contact energy.
+    plain: f64,
+    /// The staggered energy plus (dt^2 / 6) sum_i |f_i|^2 / m_i: symplectic Euler's shadow
+    /// energy of a vibration mode of angular frequency omega exceeds its staggered energy by
+    /// (omega dt)^2 / 6 of it (for x'' = -omega^2 x the scheme is a rotation at omega~ with
+    /// sin(omega~ dt / 2) = omega dt / 2, and its generating energy is the staggered invariant
+    /// times omega~ / (omega cos(omega~ dt / 2)) = 1 + (omega dt)^2 / 6 + O(dt^4)), and the time
+    /// mean of sum |f|^2 / m over a vibration is sum_k omega_k^2 E_k. Before the impact the
+    /// blocks only translate (f = 0).
+    shadow: f64,
+}
+
+/// The impact of [`collision`] with block a shifted back by `shift` (m) along x.
+fn impact(safety: f64, closing: f64, shift: f64) -> Impact {
+    let mut w = collision(safety, closing);
     let mut s = w.state();
     for (u, b) in s.u.iter_mut().zip(&w.p.body) {
         if *b == 0 {
@@ -148,6 +166,11 @@ fn impact_error(safety: f64, shift: f64) -> (f64, f64) {
     let dt = w.max_dt();
     let plain = |w: &World<2>| w.kinetic_energy() + w.strain_energy() + w.contact_energy();
     let stag = |w: &World<2>| kinetic_staggered(w, dt) + w.strain_energy() + w.contact_energy();
+    let f2m = |w: &World<2>| {
+        (0..w.len())
+            .map(|i| w.internal_force(i).norm_squared() / w.p.mass[i])
+            .sum::<f64>()
+    };
     let (e0, s0) = (plain(&w), stag(&w));
     let mut touched = false;
     let mut steps = 0;
@@ -161,46 +184,87 @@ fn impact_error(safety: f64, shift: f64) -> (f64, f64) {
         }
         assert!(steps < 200_000, "the blocks never separated");
     }
-    let (mut sum, mut ssum) = (0.0, 0.0);
+    let n = 2000.0;
+    let (mut sum, mut ssum, mut fsum) = (0.0, 0.0, 0.0);
     for _ in 0..2000 {
         w.step(dt).unwrap();
         sum += plain(&w);
         ssum += stag(&w);
+        fsum += f2m(&w);
     }
-    (ssum / 2000.0 / s0 - 1.0, sum / 2000.0 / e0 - 1.0)
+    Impact {
+        staggered: ssum / n / s0 - 1.0,
+        plain: sum / n / e0 - 1.0,
+        shadow: (ssum + dt * dt / 6.0 * fsum) / n / s0 - 1.0,
+    }
+}
+
+/// The impact over 4 phases of the first touch within a step (block a shifted back by a quarter
+/// of the closing distance of a step each time).
+fn phases(safety: f64, closing: f64) -> Vec<Impact> {
+    let dt = collision(safety, closing).max_dt();
+    (0..4)
+        .map(|k| {
+            let r = impact(safety, closing, (k as f64 + 0.5) / 4.0 * closing * dt);
+            eprintln!(
+                "safety {safety}, {closing} m/s, phase {k}/4: staggered {:+.4} %, plain {:+.4} %, shadow {:+.5} %",
+                100.0 * r.staggered,
+                100.0 * r.plain,
+                100.0 * r.shadow
+            );
+            r
+        })
+        .collect()
 }
 
 #[test]
 fn contact_impact_returns_its_energy() {
-    // The energy the scheme conserves (staggered kinetic + strain + contact) after the blocks
-    // have separated, against before the impact, over 4 phases of the first touch within a step
-    // (the blocks shifted by a quarter of the closing distance per step). Symplectic Euler's
-    // error of an impact is second order in dt. With the paper's spring (a kink at first touch)
-    // it had a random sign with the phase: at safety 1.0 / 0.8 / 0.4 / 0.2 mean +0.88 / -0.77 /
-    // -0.25 / -0.08 %, largest 5.7 / 1.9 / 0.80 / 0.15 % (8 phases). With the C1 onset of
-    // `contact::ONSET` it is phase-free and one-signed: -0.21 / -0.14 / -0.034 / -0.009 %.
-    // The issue asks for 0.2 % at the default safety (0.8); the bounds below are the measured
-    // values plus half, and the order in dt must be about 2 (factor 4 per halving: 3.5 to 4.5).
+    // The staggered energy (kinetic m v_(n-1/2).v_(n+1/2)/2 + strain + contact) after the blocks
+    // (closing at 2 m/s) have separated, against before the impact, over 4 phases of the first
+    // touch within a step. Symplectic Euler's error of an impact is second order in dt. With the
+    // paper's spring (a kink at first touch) it had a random sign with the phase: at safety
+    // 1.0 / 0.8 / 0.4 / 0.2 mean +0.88 / -0.77 / -0.25 / -0.08 %, largest 5.7 / 1.9 / 0.80 /
+    // 0.15 % (8 phases). With the C1 onset of `contact::ONSET` it is phase-free and one-signed:
+    // -0.21 / -0.14 / -0.034 / -0.009 %, the offset of the vibration the impact leaves
+    // (`Impact::shadow`). The issue asks for 0.2 % at the default safety (0.8); the bounds below
+    // are the measured values plus half, and the order in dt must be about 2 (factor 4 per
+    // halving: 3.5 to 4.5).
     let mut mean = vec![];
     for (safety, tol) in [(1.0, 0.0032), (0.8, 0.002), (0.4, 0.0006), (0.2, 0.00015)] {
-        let dt = collision(safety).max_dt();
-        let mut sum = 0.0;
-        for k in 0..4 {
-            let (stag, plain) = impact_error(safety, (k as f64 + 0.5) / 4.0 * 2.0 * dt);
-            eprintln!(
-                "safety {safety}, phase {k}/4: staggered {:+.4} %, plain {:+.4} %",
-                100.0 * stag,
-                100.0 * plain
-            );
+        let runs = phases(safety, 2.0);
+        for (k, r) in runs.iter().enumerate() {
             assert!(
-                stag.abs() < tol,
-                "safety {safety}, phase {k}: energy changed by {stag} (bound {tol})"
+                r.staggered.abs() < tol,
+                "safety {safety}, phase {k}: energy changed by {} (bound {tol})",
+                r.staggered
             );
-            sum += stag;
         }
-        mean.push(sum / 4.0);
+        mean.push(runs.iter().map(|r| r.staggered).sum::<f64>() / 4.0);
     }
     let order = mean[2] / mean[3];
     eprintln!("mean error {mean:?}; 0.4 -> 0.2: factor {order:.2}");
     assert!((3.5..4.5).contains(&order), "not second order: {order}");
+}
+
+#[test]
+fn contact_impact_keeps_the_shadow_energy_of_symplectic_euler() {
+    // Issue 7: an impact conserves energy within 0.2 % at the default safety. What the
+    // staggered energy loses in an impact is the offset of the vibration the impact leaves,
+    // -(dt^2 / 6) sum_k omega_k^2 E_k (`Impact::shadow`), which grows with the closing speed as
+    // the vibration does (safety 0.8: -0.045 / -0.136 / -0.41 / -0.65 % at 0.5 / 2 / 8 / 16 m/s);
+    // the energy the scheme conserves, the shadow energy, is kept at every speed: measured
+    // within 0.0011 / 0.0046 / 0.025 / 0.047 % at 0.5 / 2 / 8 / 16 m/s (safety 0.8) and 0.0091 %
+    // at 2 m/s and safety 1.0 (4 phases each). This needs a smooth law: with the paper's spring
+    // (its stiffness jumps to k_c at first touch) it changed by percents with the phase of the
+    // touch (safety 0.8, 2 m/s: staggered -2.2 to +1.9 % against a vibration offset of about
+    // -0.8 %). Bound: 0.1 %, twice the largest measured value and half the issue's 0.2 %.
+    for (safety, closing) in [(1.0, 2.0), (0.8, 2.0), (0.8, 0.5), (0.8, 8.0), (0.8, 16.0)] {
+        for (k, r) in phases(safety, closing).iter().enumerate() {
+            assert!(
+                r.shadow.abs() < 1e-3,
+                "safety {safety}, {closing} m/s, phase {k}: shadow energy changed by {}",
+                r.shadow
+            );
+        }
+    }
 }

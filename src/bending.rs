@@ -5,7 +5,7 @@
 //! frequency and static tip deflection (src/linear.rs) for the accuracy study.
 use crate::linear::{field_at, Linearised};
 use crate::physics::particles::FIX_AXIS;
-use crate::physics::{ElasticModel, Material, SolverOptions, Vect};
+use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions, Vect};
 use crate::scene::Model;
 use crate::scene::{
     Body, Boundary, BoundaryKind, Gravity, MirrorSpec, Probe, Region, Scene, SceneError,
@@ -16,6 +16,7 @@ pub const CANTILEVER_MATERIAL: Material = Material {
     density: 1000.0,
     young: 1.0e8,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 /// Cantilever length and section side (m).
 pub const CANTILEVER_LENGTH: f64 = 1.0;
@@ -26,6 +27,7 @@ pub const PLATE_MATERIAL: Material = Material {
     density: 1000.0,
     young: 2.0e6,
     poisson: 0.3975,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 /// Plate length beyond the clamp and thickness (m).
 pub const PLATE_LENGTH: f64 = 0.2;

@@ -5,7 +5,7 @@ mod common;
 use common::block;
 use mps_solid::physics::boundary::GravityLaw;
 use mps_solid::physics::world::GroupInit;
-use mps_solid::physics::{BodyInit, Material, SolverOptions, Vect, World};
+use mps_solid::physics::{BodyInit, Material, MaterialLaw, SolverOptions, Vect, World};
 use nalgebra::Vector2;
 
 const L0: f64 = 0.01;
@@ -13,6 +13,7 @@ const MAT: Material = Material {
     density: 1000.0,
     young: 1.0e7,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 
 #[test]

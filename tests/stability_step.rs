@@ -6,7 +6,7 @@ use mps_solid::physics::boundary::GravityLaw;
 use mps_solid::physics::integrate::critical_step;
 use mps_solid::physics::world::GroupInit;
 use mps_solid::physics::{
-    BodyInit, Dim, ElasticModel, Material, SolverOptions, Space, Vect, World,
+    BodyInit, Dim, ElasticModel, Material, MaterialLaw, SolverOptions, Space, Vect, World,
 };
 
 const L0: f64 = 0.01;
@@ -14,6 +14,7 @@ const MAT: Material = Material {
     density: 1000.0,
     young: 1.0e7,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 
 /// A 3D cantilever of nx x 4 x 4 particles along x, its first 2 layers clamped, under sudden
@@ -159,6 +160,7 @@ where
                 density: 1000.0,
                 young: 1.0e4,
                 poisson: 0.3,
+                law: MaterialLaw::SaintVenantKirchhoff,
             },
             points: block::<D>(n, L0),
             velocity: v.into(),

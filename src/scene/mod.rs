@@ -15,7 +15,7 @@ pub use velocity::{
     VelocityProfile,
 };
 
-use crate::physics::{Material, SolverOptions};
+use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -338,6 +338,20 @@ impl Scene {
             ranged(&f, &limits::DENSITY, m.density)?;
             ranged(&f, &limits::YOUNG, m.young)?;
             ranged(&f, &limits::POISSON, m.poisson)?;
+            if m.law != MaterialLaw::SaintVenantKirchhoff
+                && matches!(
+                    self.solver.model,
+                    ElasticModel::Paper | ElasticModel::PaperLocal
+                )
+            {
+                return Err(err(
+                    format!("{f}.material.law"),
+                    format!(
+                        "\"{}\" needs an operator with a strain energy density (solver.model \"corrected\" or \"second_order\"); the paper's spring operators (solver.model \"paper\", \"paper_local\") take only the default \"saint_venant_kirchhoff\"",
+                        m.law.name()
+                    ),
+                ));
+            }
             if b.boxes.is_empty() {
                 return Err(err(format!("{f}.boxes"), "a body needs at least one box"));
             }

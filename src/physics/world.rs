@@ -710,8 +710,10 @@ where
         };
         let own_text = if own.0 < law::SVK_STABLE_STRETCH {
             format!(
-                "particle {i} is compressed to {} < 1/sqrt(3)",
-                at(own.0, own.1)
+                "particle {i} is compressed to a principal stretch {:.3} < 1/sqrt(3) (det F {:.3}{})",
+                own.0,
+                own.1,
+                if own.1 <= 0.0 { ": turned inside out" } else { "" }
             )
         } else {
             format!(
@@ -722,7 +724,7 @@ where
             )
         };
         format!(
-            ". The material had failed first: {beyond} particle(s) of body '{name}' ({inverted} of them inverted) were compressed beyond a principal stretch of 1/sqrt(3), where the Saint Venant-Kirchhoff law loses stability (a further compression takes less force; an inverted particle is as stress-free as its mirror image); {own_text}. Use material.law = \"neo_hookean\", whose energy grows without bound as a particle collapses, or a smaller load"
+            ". The material had failed first: {beyond} particle(s) of body '{name}' ({inverted} of them inverted) were compressed beyond a principal stretch of 1/sqrt(3), where the Saint Venant-Kirchhoff law loses stability (a further compression takes less force, and an inverted particle has the stress of its mirror image: nothing pushes it back); {own_text}. Use material.law = \"neo_hookean\", whose energy grows without bound as a particle collapses, or a smaller load"
         )
     }
 

@@ -461,6 +461,8 @@ pub struct RelaxOptions {
     pub tol: f64,
     /// Give up (not converged) after this many first periods of simulated time.
     pub max_periods: f64,
+    /// Strain energy law of the beam's material.
+    pub law: MaterialLaw,
 }
 
 impl Default for RelaxOptions {
@@ -471,6 +473,7 @@ impl Default for RelaxOptions {
             ramp_periods: 0.5,
             tol: 1e-6,
             max_periods: 20.0,
+            law: MaterialLaw::SaintVenantKirchhoff,
         }
     }
 }
@@ -517,6 +520,7 @@ pub fn elastica_static(
     let period = 1.0 / opt.f1;
     let mut s = cantilever3d_scene(n, model);
     s.solver.damping = 2.0 * opt.zeta * omega1;
+    s.bodies[0].material.law = opt.law;
     s.gravity.vector = vec![0.0, 0.0, -g];
     let mut m = Model::<3>::build(&s)?;
     let t_ramp = opt.ramp_periods * period;

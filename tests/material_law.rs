@@ -144,8 +144,8 @@ fn forces_are_the_energy_gradient_at_large_strain() {
             let mut e = [0.0; 2];
             for (k, s) in [1.0, -1.0].iter().enumerate() {
                 let mut st = u.clone();
-                for i in 0..w.len() {
-                    st.u[i] += v[i] * (s * eps);
+                for (ui, vi) in st.u.iter_mut().zip(&v) {
+                    *ui += vi * (s * eps);
                 }
                 w.set_state(&st).unwrap();
                 e[k] = w.strain_energy();

@@ -108,7 +108,7 @@ impl MaterialLaw {
             MaterialLaw::NeoHookean => {
                 let dc = det_c_minus_one(e);
                 let det_c = 1.0 + dc;
-                if !(det_c > 0.0) {
+                if det_c.is_nan() || det_c <= 0.0 {
                     return None;
                 }
                 let c = Mat::<D>::identity() + e * 2.0;
@@ -138,7 +138,7 @@ impl MaterialLaw {
             }
             MaterialLaw::NeoHookean => {
                 let dc = det_c_minus_one(e);
-                if !(1.0 + dc > 0.0) {
+                if dc.is_nan() || 1.0 + dc <= 0.0 {
                     return None;
                 }
                 let ln_c = dc.ln_1p();

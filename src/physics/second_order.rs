@@ -556,7 +556,7 @@ where
     }
 
     /// Strain energy of the current state (J), the same energy whose gradient `forces` is.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
     pub fn strain_energy(
         &self,
         p: &Particles<D>,

@@ -220,7 +220,8 @@ pub struct FmuState {
 
 /// Magic and version of serialised FMU states. Version 3: a body's initial velocity is a
 /// tagged enum (uniform or field) in the state's scene. Version 4: a body's material carries
-/// its strain energy law (`material.law`) in the state's scene.
+/// its strain energy law (`material.law`) and a boundary its mirror face (`mirror`, null when
+/// absent) in the state's scene.
 const STATE_MAGIC: &[u8; 8] = b"MPSFMUST";
 const STATE_VERSION: u32 = 4;
 /// Largest serialised state accepted (bytes): bounds the allocations of a decoded state.

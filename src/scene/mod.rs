@@ -120,8 +120,9 @@ pub struct Boundary {
     /// holds u = 0 on the face and a face support with the normal axis free holds the
     /// tangential displacement with no normal stress, both without the one-sided fits next to
     /// the face (their O(l0) slip; docs/model.md, "Mirror faces"). Default: none, the group's
-    /// layers are a grip (a face layer on the face and walls behind it).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// layers are a grip (a face layer on the face and walls behind it). Always serialised
+    /// (null when absent): FMU states are bincode, which cannot skip fields.
+    #[serde(default)]
     pub mirror: Option<MirrorSpec>,
 }
 

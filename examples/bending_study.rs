@@ -1,6 +1,7 @@
 //! Accuracy study of the elastic operators in bending (issue 7): linearised first frequency and
 //! static tip deflection of the 2D GMS plate and the slender 3D cantilever against n particles
-//! through the thickness. `cargo run --release --example bending_study -- [2d|3d] [n...]`
+//! through the thickness. `cargo run --release --example bending_study -- [2d|3d] [n...]`;
+//! environment LAW sets the material law (`saint_venant_kirchhoff`, `neo_hookean`).
 use mps_solid::bending::{cantilever3d_scene, linear_bending, plate2d_scene};
 use mps_solid::physics::ElasticModel;
 
@@ -64,6 +65,11 @@ fn main() {
             if let Ok(nu) = std::env::var("NU") {
                 s.bodies[0].material.poisson = nu.parse().unwrap();
             }
+            if let Ok(law) = std::env::var("LAW") {
+                // material.law: saint_venant_kirchhoff (default) or neo_hookean
+                s.bodies[0].material.law =
+                    serde_json::from_value(serde_json::Value::String(law)).unwrap();
+            }
             match linear_bending(&s) {
                 Ok(r) => println!(
                     "| {name} | {n} | {} | {:.5} | {:.6e} | {} | {:.2} |",
@@ -84,8 +90,14 @@ pub fn time_forces(n: usize) {
         ElasticModel::Corrected,
         ElasticModel::Paper,
     ] {
-        let s = cantilever3d_scene(n, model);
-        let mut m = Model::<3>::build(&s).unwrap();
+        let mut s = cantilever3d_scene(n, model);
+        if let Ok(law) = std::env::var("LAW") {
+            s.bodies[0].material.law =
+                serde_json::from_value(serde_json::Value::String(law)).unwrap();
+        }
+        let Ok(mut m) = Model::<3>::build(&s) else {
+            continue; // the paper operator takes only the default law
+        };
         let bonds = m.world.bonds.len();
         let dt = m.world.max_dt();
         let t0 = std::time::Instant::now();

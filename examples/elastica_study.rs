@@ -8,7 +8,8 @@
 //! `-- second_order,corrected 4,8 1,2,3` (levels 1-based; level 0 is a check of the relaxation:
 //! g = 9.81 against the linear 3D FEM tip, where the nonlinear and the linearised static
 //! solutions agree, so its error is the linear one of BENCHMARKS.md). Environment: ZETA, RAMP (periods),
-//! TOL (in L f1), MAXP (periods) override the relaxation settings.
+//! TOL (in L f1), MAXP (periods) override the relaxation settings; LAW the material law
+//! (`saint_venant_kirchhoff`, `neo_hookean`).
 use mps_solid::bending::{
     cantilever_reference, elastica_reference, elastica_static, ElasticaLevel, RelaxOptions,
     CANTILEVER_LENGTH, G,
@@ -44,6 +45,10 @@ fn main() {
     }
     if let Some(v) = env("MAXP") {
         opt.max_periods = v;
+    }
+    if let Ok(law) = std::env::var("LAW") {
+        // material.law: saint_venant_kirchhoff (default) or neo_hookean
+        opt.law = serde_json::from_value(serde_json::Value::String(law)).unwrap();
     }
     let mut refs = elastica_reference();
     let lin = cantilever_reference();

@@ -5,7 +5,7 @@
 //! frequency and static tip deflection (src/linear.rs) for the accuracy study.
 use crate::linear::{field_at, Linearised};
 use crate::physics::particles::FIX_AXIS;
-use crate::physics::{ElasticModel, Material, SolverOptions, Vect};
+use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions, Vect};
 use crate::scene::Model;
 use crate::scene::{
     Body, Boundary, BoundaryKind, Gravity, MirrorSpec, Probe, Region, Scene, SceneError,
@@ -16,6 +16,7 @@ pub const CANTILEVER_MATERIAL: Material = Material {
     density: 1000.0,
     young: 1.0e8,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 /// Cantilever length and section side (m).
 pub const CANTILEVER_LENGTH: f64 = 1.0;
@@ -26,6 +27,7 @@ pub const PLATE_MATERIAL: Material = Material {
     density: 1000.0,
     young: 2.0e6,
     poisson: 0.3975,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 /// Plate length beyond the clamp and thickness (m).
 pub const PLATE_LENGTH: f64 = 0.2;
@@ -459,6 +461,8 @@ pub struct RelaxOptions {
     pub tol: f64,
     /// Give up (not converged) after this many first periods of simulated time.
     pub max_periods: f64,
+    /// Strain energy law of the beam's material.
+    pub law: MaterialLaw,
 }
 
 impl Default for RelaxOptions {
@@ -469,6 +473,7 @@ impl Default for RelaxOptions {
             ramp_periods: 0.5,
             tol: 1e-6,
             max_periods: 20.0,
+            law: MaterialLaw::SaintVenantKirchhoff,
         }
     }
 }
@@ -515,6 +520,7 @@ pub fn elastica_static(
     let period = 1.0 / opt.f1;
     let mut s = cantilever3d_scene(n, model);
     s.solver.damping = 2.0 * opt.zeta * omega1;
+    s.bodies[0].material.law = opt.law;
     s.gravity.vector = vec![0.0, 0.0, -g];
     let mut m = Model::<3>::build(&s)?;
     let t_ramp = opt.ramp_periods * period;

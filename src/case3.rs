@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::output::{write_grid_png_3d, write_png_3d, Camera, Frame3d, Grid3d, Label3d};
-use crate::physics::{ContactOptions, ElasticModel, Material, SolverOptions};
+use crate::physics::{ContactOptions, ElasticModel, Material, MaterialLaw, SolverOptions};
 use crate::scene::{Body, BodyVelocity, Boundary, BoundaryKind, Gravity, Probe, Region, Scene};
 use crate::sim::{ParticleSnapshot, Simulation};
 use serde::{Deserialize, Serialize};
@@ -14,12 +14,14 @@ pub const CASE3_CUBE: Material = Material {
     density: 1000.0,
     young: 6.0e6,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 /// Block: rho = 1000 kg/m^3, E = 10 MPa, nu = 0.3.
 pub const CASE3_BLOCK: Material = Material {
     density: 1000.0,
     young: 10.0e6,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 /// Cube side (m) and speed (m/s, along -y).
 pub const CUBE_SIDE: f64 = 0.5;

@@ -1,7 +1,7 @@
 //! The paper's cases as scene builders (any particle spacing, any model) with their references:
 //! the corrected closed form of case 1, beam theories and the 3D FEM reference of case 2.
 //! The scene files under `scenes/` are these builders at the paper's settings.
-use crate::physics::{ElasticModel, Material, SolverOptions};
+use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions};
 use crate::scene::{
     Analysis, Body, Boundary, BoundaryKind, Gravity, MirrorSpec, Probe, Region, Scene,
 };
@@ -14,12 +14,14 @@ pub const CASE1_MATERIAL: Material = Material {
     density: 1000.0,
     young: 10.0e6,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 /// Case 2 material: rho = 1000 kg/m^3, E = 6 MPa, nu = 0.3.
 pub const CASE2_MATERIAL: Material = Material {
     density: 1000.0,
     young: 6.0e6,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 /// Case 1 column: length (m), half width (m).
 pub const CASE1_LENGTH: f64 = 1.0;

@@ -115,7 +115,7 @@ fn clamped_plate_against_the_fem() {
 fn second_order_forces_are_the_energy_gradient() {
     use mps_solid::physics::boundary::GravityLaw;
     use mps_solid::physics::world::GroupInit;
-    use mps_solid::physics::{BodyInit, Material, SolverOptions, Vect, World};
+    use mps_solid::physics::{BodyInit, Material, MaterialLaw, SolverOptions, Vect, World};
     let l0 = 0.1;
     let mut pts = vec![];
     for i in 0..6 {
@@ -140,6 +140,7 @@ fn second_order_forces_are_the_energy_gradient() {
                 density: 1000.0,
                 young: 1e7,
                 poisson: 0.3,
+                law: MaterialLaw::SaintVenantKirchhoff,
             },
             points: pts.clone(),
             velocity: Vect::<3>::zeros().into(),
@@ -219,7 +220,7 @@ fn second_order_forces_are_the_energy_gradient() {
 fn forces_are_the_energy_gradient_with_mirror_faces() {
     use mps_solid::physics::boundary::GravityLaw;
     use mps_solid::physics::world::{GroupInit, MirrorFace};
-    use mps_solid::physics::{BodyInit, Material, SolverOptions, World};
+    use mps_solid::physics::{BodyInit, Material, MaterialLaw, SolverOptions, World};
     let l0 = 0.1;
     let mut pts = vec![];
     // Body cells x in [0, 6 l0]; clamp images at x < 0, support images at x > 6 l0.
@@ -249,6 +250,7 @@ fn forces_are_the_energy_gradient_with_mirror_faces() {
                 density: 1000.0,
                 young: 1e7,
                 poisson: 0.3,
+                law: MaterialLaw::SaintVenantKirchhoff,
             },
             points: pts.clone(),
             velocity: Vect::<3>::zeros().into(),

@@ -2,7 +2,9 @@
 //! conserve momentum to round-off and separate; the contact search runs only when needed and is
 //! rebuilt only as motion requires; an overlap stops the run with a clear error, never NaN;
 //! results do not depend on the thread count.
-use mps_solid::physics::{ContactOptions, ElasticModel, Material, SolverOptions, World};
+use mps_solid::physics::{
+    ContactOptions, ElasticModel, Material, MaterialLaw, SolverOptions, World,
+};
 use mps_solid::scene::{Body, Boundary, BoundaryKind, Gravity, Region, Scene};
 use mps_solid::Simulation;
 
@@ -11,6 +13,7 @@ const SOFT: Material = Material {
     density: 1000.0,
     young: 1.0e6,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 
 fn cube(name: &str, min: [f64; 3], side: f64, v: [f64; 3]) -> Body {

@@ -7,7 +7,7 @@ mod common;
 use common::block;
 use mps_solid::physics::boundary::GravityLaw;
 use mps_solid::physics::world::GroupInit;
-use mps_solid::physics::{BodyInit, Material, SolverOptions, Vect, World};
+use mps_solid::physics::{BodyInit, Material, MaterialLaw, SolverOptions, Vect, World};
 use nalgebra::Vector2;
 
 const L0: f64 = 0.01;
@@ -15,6 +15,7 @@ const MAT: Material = Material {
     density: 1000.0,
     young: 1.0e7,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 
 #[test]

@@ -5,7 +5,8 @@
 use mps_solid::physics::boundary::GravityLaw;
 use mps_solid::physics::world::GroupInit;
 use mps_solid::physics::{
-    BodyInit, ContactOptions, ElasticModel, Material, SimError, SolverOptions, Vect, World,
+    BodyInit, ContactOptions, ElasticModel, Material, MaterialLaw, SimError, SolverOptions, Vect,
+    World,
 };
 use nalgebra::Vector3;
 
@@ -16,6 +17,7 @@ const BAR: Material = Material {
     density: 1000.0,
     young: 1.0e7,
     poisson: 0.0,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 const GRIP: usize = 3;
 

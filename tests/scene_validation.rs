@@ -415,6 +415,19 @@ fn each_bad_field_is_named() {
             }),
             "bodies[0] ('beam').velocity: the velocity at the particle at",
         ),
+        (
+            "unknown material law",
+            Box::new(|v| v["bodies"][0]["material"]["law"] = "mooney_rivlin".into()),
+            "bodies[0].material.law: unknown variant `mooney_rivlin`, expected `saint_venant_kirchhoff` or `neo_hookean`",
+        ),
+        (
+            "neo-Hookean law with the paper's spring operator",
+            Box::new(|v| {
+                v["bodies"][0]["material"]["law"] = "neo_hookean".into();
+                v["solver"]["model"] = "paper".into();
+            }),
+            "bodies[0] ('beam').material.law: \"neo_hookean\" needs an operator with a strain energy density",
+        ),
     ];
     for (what, edit, needle) in cases {
         let mut v = base();
@@ -745,4 +758,38 @@ fn the_paper_cases_and_test_scenes_have_no_warnings() {
         let s = Scene::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(f)).unwrap();
         assert_eq!(s.warnings(), vec![], "{f}");
     }
+}
+
+#[test]
+fn material_law_is_optional_and_selectable() {
+    // A scene without material.law is Saint Venant-Kirchhoff, as before the field existed; the
+    // neo-Hookean law loads with both energy operators.
+    let s = Scene::from_json(&base().to_string()).unwrap();
+    assert_eq!(
+        s.bodies[0].material.law,
+        mps_solid::physics::MaterialLaw::SaintVenantKirchhoff
+    );
+    assert!(base()["bodies"][0]["material"]
+        .get("law")
+        .is_some_and(|l| l == "saint_venant_kirchhoff"));
+    for model in ["corrected", "second_order"] {
+        let mut v = base();
+        v["bodies"][0]["material"]["law"] = "neo_hookean".into();
+        v["solver"]["model"] = model.into();
+        let s = Scene::from_json(&v.to_string()).unwrap();
+        assert_eq!(
+            s.bodies[0].material.law,
+            mps_solid::physics::MaterialLaw::NeoHookean
+        );
+    }
+    let mut v = base();
+    v["bodies"][0]["material"]
+        .as_object_mut()
+        .unwrap()
+        .remove("law");
+    let s = Scene::from_json(&v.to_string()).unwrap();
+    assert_eq!(
+        s.bodies[0].material.law,
+        mps_solid::physics::MaterialLaw::SaintVenantKirchhoff
+    );
 }

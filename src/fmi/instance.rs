@@ -30,7 +30,7 @@ pub enum FmiError {
     IllegalCall(String),
     /// A bad argument: unknown value reference, wrong type, NaN, out of range, bad state data...
     Invalid(String),
-    /// The solver failed (blow-up) or the model could not be built.
+    /// The solver failed (blow-up, material collapse, overlap) or the model could not be built.
     Solver(String),
     /// A status that is not provided (fmi2Discard by the standard).
     NotProvided(String),
@@ -219,9 +219,11 @@ pub struct FmuState {
 }
 
 /// Magic and version of serialised FMU states. Version 3: a body's initial velocity is a
-/// tagged enum (uniform or field) in the state's scene.
+/// tagged enum (uniform or field) in the state's scene. Version 4: a body's material carries
+/// its strain energy law (`material.law`) and a boundary its mirror face (`mirror`, null when
+/// absent) in the state's scene.
 const STATE_MAGIC: &[u8; 8] = b"MPSFMUST";
-const STATE_VERSION: u32 = 3;
+const STATE_VERSION: u32 = 4;
 /// Largest serialised state accepted (bytes): bounds the allocations of a decoded state.
 const MAX_STATE_BYTES: u64 = 1 << 34;
 

@@ -71,7 +71,7 @@ pub fn documentation_html(scene: &Scene, sim: &crate::sim::Simulation) -> String
          act at the start of the step (boundary_input_timing = 1, FMI semantics) or are reached at \
          its end (2). Gravity comes from the scene's law (gravity_source = 1) or the inputs (2). \
          A NaN or infinite input is refused (fmi2Error); a coupled run that goes unstable stops \
-         with the solver's blow-up or overlap error, never with NaN outputs.</p>\n"
+         with the solver's blow-up, material-collapse or overlap error, never with NaN outputs.</p>\n"
     ));
     s.push_str("<table>\n<tr><th>Kind</th><th>Name</th><th>Body</th><th>Region or point (m)</th><th>Particles</th></tr>\n");
     for (r, l) in scene.loads.iter().enumerate() {

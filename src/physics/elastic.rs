@@ -3,9 +3,10 @@
 //! sums over its own bonds and writes only its own force, so results do not depend on threads.
 use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
+use super::law;
 #[allow(unused_imports)]
 use super::par::*;
-use super::params::{ElasticModel, Material};
+use super::params::{ElasticModel, Material, MaterialLaw};
 use super::particles::Particles;
 use super::second_order::{SecondOrder, SecondOrderScratch};
 use crate::par_iter_mut;
@@ -22,6 +23,8 @@ pub struct ElasticOperator<const D: usize> {
     pub stabilisation: f64,
     /// Per-body (mu, lambda) (Pa).
     pub lame: Vec<(f64, f64)>,
+    /// Per-body strain energy law of the energy operators (the paper's ignore it).
+    pub laws: Vec<MaterialLaw>,
     /// Corrected model: inverse shape tensor K_i^-1 with K_i = sum_j w0/|r0|^2 r0 r0^T.
     pub k_inv: Vec<Mat<D>>,
     /// Corrected model: projector K_i^+ K_i on the span of the intact bonds of particle i; exactly
@@ -52,6 +55,9 @@ pub struct ElasticScratch<const D: usize> {
     pub pressure: Vec<f64>,
     /// Second-order model: gradients, Hessians and their conjugates.
     pub second: SecondOrderScratch<D>,
+    /// Energy operators: 1 where the particle's law has no energy at its state (a neo-Hookean
+    /// particle collapsed or inverted, det F <= 0); its stress is then taken as zero.
+    pub collapsed: Vec<u8>,
 }
 
 impl<const D: usize> ElasticOperator<D>
@@ -77,6 +83,7 @@ where
             n0,
             stabilisation,
             lame: materials.iter().map(|m| (m.mu(), m.lambda())).collect(),
+            laws: materials.iter().map(|m| m.law).collect(),
             k_inv: Vec::new(),
             span: Vec::new(),
             vol: vec![l0.powi(D as i32); n_particles],
@@ -137,7 +144,10 @@ where
         self.stabilisation * 2.0 * D as f64 * mu / self.n0
     }
 
-    /// Computes the internal force and moment of every particle at the current state.
+    /// Computes the internal force and moment of every particle at the current state. Returns
+    /// the first particle whose material law has no energy at its state (a collapsed or inverted
+    /// neo-Hookean particle, see [`ElasticScratch::collapsed`]), if any; the forces are then
+    /// finite but not those of the model.
     pub fn forces(
         &self,
         p: &Particles<D>,
@@ -145,7 +155,8 @@ where
         s: &mut ElasticScratch<D>,
         force: &mut [Vect<D>],
         torque: &mut [<Space as Dim<D>>::Ang],
-    ) {
+    ) -> Option<usize> {
+        s.collapsed.resize(p.len(), 0);
         match self.model {
             ElasticModel::Corrected => self.corrected_forces(p, bonds, s, force, torque),
             ElasticModel::SecondOrder => {
@@ -153,10 +164,12 @@ where
                     p,
                     bonds,
                     &self.lame,
+                    &self.laws,
                     &self.vol,
                     self.volume,
                     self.l0,
                     &mut s.second,
+                    &mut s.collapsed,
                     force,
                 );
                 torque
@@ -166,6 +179,47 @@ where
             ElasticModel::Paper | ElasticModel::PaperLocal => {
                 self.paper_forces(p, bonds, s, force, torque)
             }
+        }
+        if self
+            .laws
+            .iter()
+            .all(|&l| l == MaterialLaw::SaintVenantKirchhoff)
+        {
+            return None;
+        }
+        s.collapsed.iter().position(|&c| c != 0)
+    }
+
+    /// det F of particle i at the last force evaluation (its area or volume ratio), for the
+    /// energy operators; after fracture left its bonds in a line or plane, the ratio in their
+    /// span, `det(I + 2E)^(1/2)`. None for the paper's operators.
+    pub fn jacobian(&self, s: &ElasticScratch<D>, i: usize) -> Option<f64> {
+        let (f, e) = self.strain_of(s, i)?;
+        let full = match self.model {
+            ElasticModel::SecondOrder => self.second.full[i],
+            _ => self.span[i] == Mat::<D>::identity(),
+        };
+        Some(if full {
+            law::det(&f)
+        } else {
+            (1.0 + law::det_c_minus_one(&e)).max(0.0).sqrt()
+        })
+    }
+
+    /// Deformation gradient F and Green strain E = (F^T F - P) / 2 (in the span P of the
+    /// bonds) of particle i at the last force evaluation, for the energy operators; None for
+    /// the paper's operators (no deformation gradient) or before the first evaluation.
+    pub fn strain_of(&self, s: &ElasticScratch<D>, i: usize) -> Option<(Mat<D>, Mat<D>)> {
+        match self.model {
+            ElasticModel::Corrected => {
+                let f = *s.defgrad.get(i)?;
+                Some((f, (f.transpose() * f - self.span[i]) * 0.5))
+            }
+            ElasticModel::SecondOrder => {
+                let h = s.second.grad.get(i)?;
+                Some(self.second.strain_of(h, i))
+            }
+            ElasticModel::Paper | ElasticModel::PaperLocal => None,
         }
     }
 
@@ -182,12 +236,14 @@ where
         s.bmat.resize(n, Mat::<D>::zeros());
         let v = self.volume;
         // Pass 1: F_i = (sum_j w r_ij r0_ij^T / |r0|^2) K_i^-1 (exact for affine motion), Green
-        // strain E = (F^T F - I) / 2, Saint Venant-Kirchhoff S = 2 mu E + lambda tr(E) I
-        // (Eqs. (6)-(7) in the small-strain limit), first Piola-Kirchhoff P = F S.
+        // strain E = (F^T F - I) / 2, the law's second Piola-Kirchhoff stress S (Saint
+        // Venant-Kirchhoff S = 2 mu E + lambda tr(E) I, Eqs. (6)-(7) in the small-strain limit,
+        // or neo-Hookean, module `law`), first Piola-Kirchhoff P = F S.
         par_iter_mut!(s.defgrad)
             .zip(par_iter_mut!(s.bmat))
+            .zip(par_iter_mut!(s.collapsed))
             .enumerate()
-            .for_each(|(i, (f_out, b_out))| {
+            .for_each(|(i, ((f_out, b_out), c_out))| {
                 let ui = p.u[i];
                 let mut g = Mat::<D>::zeros();
                 for b in bonds.of(i) {
@@ -202,9 +258,26 @@ where
                     g += (r * om) * r0.transpose();
                 }
                 let f = g * self.k_inv[i];
-                let (mu, lambda) = self.lame[p.body[i] as usize];
+                let body = p.body[i] as usize;
+                let (mu, lambda) = self.lame[body];
+                let law = self.laws[body];
                 let e = (f.transpose() * f - self.span[i]) * 0.5;
-                let stress = e * (2.0 * mu) + Mat::<D>::identity() * (lambda * e.trace());
+                let stress = match law.stress(&e, mu, lambda) {
+                    // An inverted particle (det F <= 0) of a full neighbourhood has the same C
+                    // as a mirrored one: only F sees it.
+                    Some(s)
+                        if law == MaterialLaw::SaintVenantKirchhoff
+                            || self.span[i] != Mat::<D>::identity()
+                            || law::det(&f) > 0.0 =>
+                    {
+                        *c_out = 0;
+                        s
+                    }
+                    _ => {
+                        *c_out = 1;
+                        Mat::<D>::zeros()
+                    }
+                };
                 *b_out = (f * stress * self.k_inv[i]) * self.vol[i] - f * (self.kappa(mu) * v);
                 *f_out = f;
             });
@@ -315,6 +388,7 @@ where
                 p,
                 bonds,
                 &self.lame,
+                &self.laws,
                 &self.vol,
                 self.volume,
                 self.l0,
@@ -332,8 +406,13 @@ where
                 ElasticModel::Corrected => {
                     let f = s.defgrad.get(i).copied().unwrap_or_else(Mat::<D>::identity);
                     let e = (f.transpose() * f - self.span[i]) * 0.5;
-                    total += self.vol[i]
-                        * (mu * e.component_mul(&e).sum() + 0.5 * lambda * e.trace().powi(2));
+                    // A collapsed neo-Hookean particle: the energy grows without bound as
+                    // J -> 0 (the step that made it stops the run).
+                    let w = match s.collapsed.get(i) {
+                        Some(&1) => None,
+                        _ => self.laws[p.body[i] as usize].energy(&e, mu, lambda),
+                    };
+                    total += self.vol[i] * w.unwrap_or(f64::INFINITY);
                     let kv = self.kappa(mu) * v;
                     for b in bonds.of(i) {
                         let r0 = bonds.r0[b];

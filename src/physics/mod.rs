@@ -8,6 +8,7 @@ pub mod elastic;
 pub mod fracture;
 pub mod grid;
 pub mod integrate;
+pub mod law;
 pub mod params;
 pub mod particles;
 pub mod second_order;
@@ -33,5 +34,5 @@ macro_rules! par_iter_mut {
 }
 
 pub use dim::{Dim, Mat, Space, Vect};
-pub use params::{BondStrain, ContactOptions, ElasticModel, Material, SolverOptions};
+pub use params::{BondStrain, ContactOptions, ElasticModel, Material, MaterialLaw, SolverOptions};
 pub use world::{BodyInit, InitialVelocity, SimError, World};

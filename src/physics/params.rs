@@ -9,7 +9,8 @@ pub const DEFAULT_MAX_PARTICLES: usize = 2_000_000;
 /// hour on one core.
 pub const DEFAULT_MAX_STEPS: u64 = 20_000_000;
 
-/// Isotropic linear-elastic material.
+/// Isotropic elastic material: its small-strain constants and the large-strain law of the
+/// energy operators.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Material {
@@ -19,6 +20,30 @@ pub struct Material {
     pub young: f64,
     /// Poisson's ratio nu (-), in [-0.999, 0.499] (scene::limits::POISSON says why).
     pub poisson: f64,
+    /// Strain energy law at large strain of the energy operators (`corrected`, `second_order`);
+    /// every law has the same small-strain limit, set by `young` and `poisson`. Absent from a
+    /// scene: Saint Venant-Kirchhoff. Always serialised: FMU states are bincode, which cannot
+    /// skip fields.
+    #[serde(default)]
+    pub law: MaterialLaw,
+}
+
+/// Strain energy density W of the energy operators at large strain (src/physics/law.rs,
+/// docs/model.md "Material law"). The paper's spring operators have no strain energy density and
+/// take only the default.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MaterialLaw {
+    /// Saint Venant-Kirchhoff, `W = mu E:E + lambda/2 tr(E)^2` in the Green strain E: linear
+    /// stress in E, exact small-strain limit, but it softens in compression (the uniaxial stress
+    /// falls beyond a principal stretch of 1/sqrt(3)) and has no energy barrier against collapse.
+    #[default]
+    SaintVenantKirchhoff,
+    /// Compressible neo-Hookean in the isochoric/volumetric split,
+    /// `W = mu/2 (J^(-2/3) I1 - 3) + K/4 (J^2 - 1 - 2 ln J)`, `K = lambda + 2 mu / 3`:
+    /// polyconvex for every nu in (-1, 1/2), the energy grows without bound as J -> 0, so a
+    /// particle resists collapse; J <= 0 (inverted) stops the run with an error.
+    NeoHookean,
 }
 
 impl Material {

@@ -16,9 +16,11 @@
 //!   first-order corrected weight K_i^-1 r0_ij w0 / |r0|^2 (odd and even moments decouple);
 //! * cell energy V [W(E) + l0^2 / 12 sum_a w(sym(F^T G^(a)))]: the Taylor expansion of the
 //!   energy density over the cell, int_cell W = V [W + l0^2 / 24 sum_a d_a^2 W], exact for a
-//!   cubic density; W is Saint Venant-Kirchhoff in the Green strain E (Eqs. (6)-(7) at small
-//!   strain), w(e) = mu e:e + lambda / 2 tr(e)^2, and F^T G^(a) = d_a E to first order
-//!   (objective: unchanged by a rigid rotation);
+//!   cubic density; W is the body's law in the Green strain E (Saint Venant-Kirchhoff, Eqs.
+//!   (6)-(7) at small strain, or neo-Hookean, module `law`), w(e) = mu e:e + lambda / 2 tr(e)^2,
+//!   and F^T G^(a) = d_a E to first order (objective: unchanged by a rigid rotation). The cell
+//!   term keeps the small-strain moduli for every law: it is the O(l0^2) correction of the
+//!   quadrature, d_a^2 W ~ d_aE : C : d_aE with the tangent C taken at zero strain;
 //! * residual energy V sum_j (w0_ij / n_i) mu |sym(d_ij n_ij^T)|^2 with d_ij the part of the
 //!   bond's motion that the local quadratic field does not explain,
 //!   d_ij = [u_j - u_i - H_i r0 - 1/2 G_i : r0 r0] / |r0|, n = r0 / |r0|: zero for every
@@ -31,8 +33,10 @@ use nalgebra::DMatrix;
 
 use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
+use super::law;
 #[allow(unused_imports)]
 use super::par::*;
+use super::params::MaterialLaw;
 use super::particles::Particles;
 use crate::par_iter_mut;
 
@@ -355,6 +359,15 @@ where
         }
     }
 
+    /// Deformation gradient F = P + H and Green strain of particle i with displacement gradient
+    /// `h`.
+    pub fn strain_of(&self, h: &Mat<D>, i: usize) -> (Mat<D>, Mat<D>) {
+        (
+            self.span[i] + h,
+            Self::green(h, &self.span[i], self.full[i]),
+        )
+    }
+
     /// Residual d_ij |r0| of bond b of particle i with displacement difference du.
     #[inline(always)]
     fn residual(du: &Vect<D>, r0: &Vect<D>, grad: &Mat<D>, hess: &[Mat<D>; D]) -> Vect<D> {
@@ -373,17 +386,22 @@ where
         (res + r0 * (res.dot(r0) / l2)) * c
     }
 
-    /// Internal forces of the current state (one energy, gather form).
+    /// Internal forces of the current state (one energy, gather form), with the per-body Lame
+    /// constants and laws. `collapsed[i]` is set to 1 where the law has no energy at the
+    /// particle's state (a collapsed or inverted neo-Hookean particle: its stress is taken as
+    /// zero), to 0 elsewhere.
     #[allow(clippy::too_many_arguments)]
     pub fn forces(
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
         lame: &[(f64, f64)],
+        laws: &[MaterialLaw],
         vol: &[f64],
         volume: f64,
         l0: f64,
         s: &mut SecondOrderScratch<D>,
+        collapsed: &mut [u8],
         force: &mut [Vect<D>],
     ) {
         let n = p.len();
@@ -418,8 +436,9 @@ where
         par_iter_mut!(s.grad)
             .zip(par_iter_mut!(s.hess))
             .zip(par_iter_mut!(slices))
+            .zip(par_iter_mut!(collapsed))
             .enumerate()
-            .for_each(|(i, ((gr, he), out))| {
+            .for_each(|(i, (((gr, he), out), c_out))| {
                 let ui = uu[i];
                 let mut h = Mat::<D>::zeros();
                 let mut g = [Mat::<D>::zeros(); D];
@@ -440,15 +459,32 @@ where
                 }
                 *gr = h;
                 *he = g;
+                *c_out = 0;
                 if self.rigid[i] {
                     out.iter_mut().for_each(|d| *d = Vect::<D>::zeros());
                     return;
                 }
-                let (mu, lambda) = lame[p.body[i] as usize];
+                let body = p.body[i] as usize;
+                let (mu, lambda) = lame[body];
+                let law = laws[body];
                 let full = self.full[i];
                 let f = self.span[i] + h;
                 let e = Self::green(&h, &self.span[i], full);
-                let stress = lin_stress(&e, mu, lambda);
+                let stress = match law.stress(&e, mu, lambda) {
+                    // An inverted particle (det F <= 0) of a full neighbourhood has the same C
+                    // as a mirrored one: only F sees it.
+                    Some(s)
+                        if law == MaterialLaw::SaintVenantKirchhoff
+                            || !full
+                            || law::det(&f) > 0.0 =>
+                    {
+                        s
+                    }
+                    _ => {
+                        *c_out = 1;
+                        Mat::<D>::zeros()
+                    }
+                };
                 // dW/dH = dW/dF = F S (first Piola-Kirchhoff), times the cell volume.
                 let mut a_i = f * stress * vol[i];
                 let mut b_i = [Mat::<D>::zeros(); D];
@@ -520,12 +556,13 @@ where
     }
 
     /// Strain energy of the current state (J), the same energy whose gradient `forces` is.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
     pub fn strain_energy(
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
         lame: &[(f64, f64)],
+        laws: &[MaterialLaw],
         vol: &[f64],
         volume: f64,
         l0: f64,
@@ -547,10 +584,19 @@ where
                 continue;
             }
             let g = &s.hess[i];
-            let (mu, lambda) = lame[p.body[i] as usize];
+            let body = p.body[i] as usize;
+            let (mu, lambda) = lame[body];
             let f = self.span[i] + h;
             let e = Self::green(h, &self.span[i], self.full[i]);
-            total += vol[i] * w(&e, mu, lambda);
+            // A collapsed neo-Hookean particle: the energy grows without bound as J -> 0.
+            let inverted = laws[body] != MaterialLaw::SaintVenantKirchhoff
+                && self.full[i]
+                && law::det(&f) <= 0.0;
+            total += vol[i]
+                * laws[body]
+                    .energy(&e, mu, lambda)
+                    .filter(|_| !inverted)
+                    .unwrap_or(f64::INFINITY);
             if self.quadratic[i] {
                 for ga in g.iter() {
                     let ea = f.transpose() * ga;

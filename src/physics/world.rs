@@ -7,7 +7,8 @@ use super::contact::{Contact, Overlap};
 use super::dim::{Dim, Space, Vect};
 use super::elastic::{ElasticOperator, ElasticScratch};
 use super::integrate::{critical_step, symplectic_euler, StepInputs};
-use super::params::{Material, SolverOptions};
+use super::law;
+use super::params::{Material, MaterialLaw, SolverOptions};
 use super::particles::{Particles, FIX_AXIS, FIX_ROT};
 pub use super::second_order::Ghost;
 use serde::{Deserialize, Serialize};
@@ -15,12 +16,25 @@ use serde::{Deserialize, Serialize};
 /// Errors of the solver; each says what happened, when and where.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SimError {
-    #[error("numerical blow-up at t = {time:.6e} s (step {step}): particle {particle} of body '{body}' was accelerated by more than half a particle spacing in one step (dt times its change of velocity) or became non-finite; reduce dt or check loads")]
+    #[error("numerical blow-up at t = {time:.6e} s (step {step}): particle {particle} of body '{body}' was accelerated by more than half a particle spacing in one step (dt times its change of velocity) or became non-finite; reduce dt or check loads{note}")]
     BlowUp {
         time: f64,
         step: u64,
         particle: usize,
         body: String,
+        /// What the material state says about the cause (empty when nothing is known): with
+        /// the Saint Venant-Kirchhoff law, the particles compressed beyond its stability limit.
+        note: String,
+    },
+    #[error("material collapse at t = {time:.6e} s (step {step}): particle {particle} of body '{body}' has det F = {det:.4e} <= 0 (compressed to nothing or turned inside out), where the neo-Hookean law has no energy; its energy grows without bound as det F -> 0, so only a step too long for the stiffening of the crushed particle or a load the discretisation cannot carry gets there (try a smaller solver.safety or particle spacing, or a smaller load)")]
+    Collapsed {
+        time: f64,
+        step: u64,
+        particle: usize,
+        body: String,
+        /// det F of the particle (its area or volume ratio; in the span of its bonds after
+        /// fracture) (-).
+        det: f64,
     },
     #[error("particles overlap at t = {time:.6e} s (step {step}): particle {} of body '{}' and particle {} of body '{}', not joined by an intact bond, are {distance:.4e} m apart, below the overlap limit {limit:.4e} m (contact.overlap_fraction x the pair's contact distance, l0 or the reference length of a broken bond){}", particles[0], bodies[0], particles[1], bodies[1], if bodies[0] == bodies[1] { "; they are parts of one body separated by fracture" } else { "" })]
     Overlap {
@@ -325,6 +339,22 @@ where
                 )));
             }
         }
+        if matches!(
+            options.model,
+            super::params::ElasticModel::Paper | super::params::ElasticModel::PaperLocal
+        ) {
+            if let Some((b, body)) = bodies
+                .iter()
+                .enumerate()
+                .find(|(_, b)| b.material.law != MaterialLaw::SaintVenantKirchhoff)
+            {
+                return Err(SimError::Invalid(format!(
+                    "body '{}' (bodies[{b}]): material.law = {} needs an operator with a strain energy density (solver.model corrected or second_order); the paper's spring operators have none",
+                    body.name,
+                    body.material.law.name()
+                )));
+            }
+        }
         let total: usize = bodies.iter().map(|b| b.points.len()).sum();
         let oom = |e: std::collections::TryReserveError| {
             SimError::OutOfMemory(format!(
@@ -531,11 +561,13 @@ where
         };
         world.omega2_contact = c2;
         world.omega_max = (world.omega_elastic.powi(2) + c2).sqrt();
-        if let Some(o) = world.update_forces() {
-            return Err(SimError::Invalid(format!(
-                "bodies overlap in the initial state: {}",
-                world.overlap_error(o)
-            )));
+        match world.update_forces() {
+            Err(e @ SimError::Overlap { .. }) => {
+                return Err(SimError::Invalid(format!(
+                    "bodies overlap in the initial state: {e}"
+                )))
+            }
+            r => r?,
         }
         Ok(world)
     }
@@ -586,15 +618,26 @@ where
     }
 
     /// Evaluates the internal and contact forces of the current state and the reactions of the
-    /// groups. Returns the first overlap found (contact forces are then incomplete).
-    fn update_forces(&mut self) -> Option<Overlap> {
-        self.op.forces(
+    /// groups. An error for the first particle whose material law has no energy at its state
+    /// (a collapsed neo-Hookean particle) or the first overlap found (contact forces are then
+    /// incomplete).
+    fn update_forces(&mut self) -> Result<(), SimError> {
+        let collapsed = self.op.forces(
             &self.p,
             &self.bonds,
             &mut self.scratch,
             &mut self.force,
             &mut self.torque,
         );
+        if let Some(i) = collapsed {
+            return Err(SimError::Collapsed {
+                time: self.time,
+                step: self.steps,
+                particle: i,
+                body: self.body_names[self.p.body[i] as usize].clone(),
+                det: self.op.jacobian(&self.scratch, i).unwrap_or(0.0),
+            });
+        }
         let mut overlap = None;
         if self.contact.active {
             self.contact
@@ -615,7 +658,74 @@ where
             }
             g.reaction = sum;
         }
-        overlap
+        match overlap {
+            Some(o) => Err(self.overlap_error(o)),
+            None => Ok(()),
+        }
+    }
+
+    /// With the Saint Venant-Kirchhoff law: what the material state of the last force
+    /// evaluation says about a blow-up at particle i, as a clause of the error message (empty
+    /// when the body's particles are all within the law's stability limit, for other laws and
+    /// for the paper's operators, which have no deformation gradient).
+    fn blow_up_note(&self, i: usize) -> String {
+        let body = self.p.body[i];
+        if self.op.laws.get(body as usize) != Some(&MaterialLaw::SaintVenantKirchhoff) {
+            return String::new();
+        }
+        let state = |k: usize| {
+            self.op
+                .strain_of(&self.scratch, k)
+                .map(|(f, e)| (law::smallest_stretch(&e), law::det(&f)))
+        };
+        let Some(own) = state(i) else {
+            return String::new();
+        };
+        // (count beyond the limit, inverted count, most compressed (stretch, det, particle))
+        let mut beyond = 0usize;
+        let mut inverted = 0usize;
+        let mut worst = (f64::INFINITY, 0.0, i);
+        for k in 0..self.len() {
+            if self.p.body[k] != body {
+                continue;
+            }
+            let Some((s, d)) = state(k) else { continue };
+            if s < law::SVK_STABLE_STRETCH {
+                beyond += 1;
+                inverted += usize::from(d <= 0.0);
+            }
+            if s < worst.0 {
+                worst = (s, d, k);
+            }
+        }
+        if beyond == 0 {
+            return String::new();
+        }
+        let name = &self.body_names[body as usize];
+        let at = |s: f64, d: f64| {
+            format!(
+                "principal stretch {s:.3}, det F {d:.3}{}",
+                if d <= 0.0 { ": turned inside out" } else { "" }
+            )
+        };
+        let own_text = if own.0 < law::SVK_STABLE_STRETCH {
+            format!(
+                "particle {i} is compressed to a principal stretch {:.3} < 1/sqrt(3) (det F {:.3}{})",
+                own.0,
+                own.1,
+                if own.1 <= 0.0 { ": turned inside out" } else { "" }
+            )
+        } else {
+            format!(
+                "particle {i} itself is at {}; the most compressed is particle {} ({})",
+                at(own.0, own.1),
+                worst.2,
+                at(worst.0, worst.1)
+            )
+        };
+        format!(
+            ". The material had failed first: {beyond} particle(s) of body '{name}' ({inverted} of them inverted) were compressed beyond a principal stretch of 1/sqrt(3), where the Saint Venant-Kirchhoff law loses stability (a further compression takes less force, and an inverted particle has the stress of its mirror image: nothing pushes it back); {own_text}. Use material.law = \"neo_hookean\", whose energy grows without bound as a particle collapses, or a smaller load"
+        )
     }
 
     /// Eq. (42): breaks the bonds strained beyond eps_max and updates what depends on them
@@ -691,12 +801,11 @@ where
                 step: self.steps,
                 particle: i,
                 body: self.body_names[self.p.body[i] as usize].clone(),
+                note: self.blow_up_note(i),
             });
         }
         self.fracture();
-        if let Some(o) = self.update_forces() {
-            return Err(self.overlap_error(o));
-        }
+        self.update_forces()?;
         self.maybe_refresh_step();
         Ok(())
     }
@@ -1040,10 +1149,7 @@ where
         self.stable = s.stable_step.clone();
         self.omega_elastic = self.stable.omega_elastic.max(self.omega_reference);
         self.omega_max = (self.omega_elastic.powi(2) + self.omega2_contact).sqrt();
-        if let Some(o) = self.update_forces() {
-            return Err(self.overlap_error(o));
-        }
-        Ok(())
+        self.update_forces()
     }
 
     /// Largest eigenvalue of M^-1 K (translations and, in the paper model, rotations) by power

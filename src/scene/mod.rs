@@ -15,7 +15,7 @@ pub use velocity::{
     VelocityProfile,
 };
 
-use crate::physics::{Material, SolverOptions};
+use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -120,8 +120,9 @@ pub struct Boundary {
     /// holds u = 0 on the face and a face support with the normal axis free holds the
     /// tangential displacement with no normal stress, both without the one-sided fits next to
     /// the face (their O(l0) slip; docs/model.md, "Mirror faces"). Default: none, the group's
-    /// layers are a grip (a face layer on the face and walls behind it).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// layers are a grip (a face layer on the face and walls behind it). Always serialised
+    /// (null when absent): FMU states are bincode, which cannot skip fields.
+    #[serde(default)]
     pub mirror: Option<MirrorSpec>,
 }
 
@@ -338,6 +339,20 @@ impl Scene {
             ranged(&f, &limits::DENSITY, m.density)?;
             ranged(&f, &limits::YOUNG, m.young)?;
             ranged(&f, &limits::POISSON, m.poisson)?;
+            if m.law != MaterialLaw::SaintVenantKirchhoff
+                && matches!(
+                    self.solver.model,
+                    ElasticModel::Paper | ElasticModel::PaperLocal
+                )
+            {
+                return Err(err(
+                    format!("{f}.material.law"),
+                    format!(
+                        "\"{}\" needs an operator with a strain energy density (solver.model \"corrected\" or \"second_order\"); the paper's spring operators (solver.model \"paper\", \"paper_local\") take only the default \"saint_venant_kirchhoff\"",
+                        m.law.name()
+                    ),
+                ));
+            }
             if b.boxes.is_empty() {
                 return Err(err(format!("{f}.boxes"), "a body needs at least one box"));
             }

@@ -3,13 +3,14 @@
 use mps_solid::physics::boundary::GravityLaw;
 use mps_solid::physics::world::GroupInit;
 use mps_solid::physics::{
-    BodyInit, Dim, ElasticModel, Material, SolverOptions, Space, Vect, World,
+    BodyInit, Dim, ElasticModel, Material, MaterialLaw, SolverOptions, Space, Vect, World,
 };
 
 pub const STEEL_LIKE: Material = Material {
     density: 1000.0,
     young: 1.0e7,
     poisson: 0.3,
+    law: MaterialLaw::SaintVenantKirchhoff,
 };
 
 /// A block of nx x ny (x nz) particles at spacing l0, centred on the origin.

@@ -1,4 +1,4 @@
-//! The second-order elastic operator (the default): displacement gradients and Hessians from a
+//! The second-order elastic operator (selectable, `model = second_order`): displacement gradients and Hessians from a
 //! quadratic-consistent weighted least-squares fit over each particle's bonds, a strain energy
 //! integrated over each particle's cell to second order, and a stabilisation of the motion
 //! that no quadratic field explains, with the shear modulus as its stiffness (no tuned factor).

@@ -111,7 +111,6 @@ fn clamped_plate_against_the_fem() {
 /// grip on one face, f . v = -dE/du . v by central differences to 1e-6 relative (the difference
 /// quotient's truncation at eps = 1e-6 is ~1e-10; round-off of E ~1e-12).
 #[test]
-#[allow(clippy::needless_range_loop)]
 fn second_order_forces_are_the_energy_gradient() {
     use mps_solid::physics::boundary::GravityLaw;
     use mps_solid::physics::world::GroupInit;
@@ -182,7 +181,6 @@ fn second_order_forces_are_the_energy_gradient() {
 /// displacements are their masters' reflected, so the chain rule through them must be in the
 /// forces: f . v = -dE/du . v to 1e-6 relative for a random v on the free particles.
 #[test]
-#[allow(clippy::needless_range_loop)]
 fn forces_are_the_energy_gradient_with_mirror_faces() {
     use mps_solid::physics::boundary::GravityLaw;
     use mps_solid::physics::world::{GroupInit, MirrorFace};
@@ -256,6 +254,7 @@ fn forces_are_the_energy_gradient_with_mirror_faces() {
 /// random displacement (~2e-3 l0) and direction v of the free particles; the members of `moved`
 /// are first displaced by `shift` (a group's motion). The difference quotient's truncation is
 /// ~1e-10 and the round-off of E ~1e-12.
+#[allow(clippy::needless_range_loop)]
 fn assert_forces_are_the_energy_gradient(
     w: &mut mps_solid::physics::World<3>,
     l0: f64,

@@ -61,6 +61,12 @@ fn main() {
             if let Ok(re) = std::env::var("RE") {
                 // re / l0 (the wall layers behind the face enter no second-order fit)
                 s.solver.re_factor = re.parse().unwrap();
+                if s.boundaries[0].mirror.is_some() {
+                    // a mirror clamp needs ceil(re / l0) layers of images to fill the stencil
+                    let far = -s.solver.re_factor.ceil() * s.particle_spacing;
+                    s.bodies[0].boxes[1].min[0] = far;
+                    s.boundaries[0].region.min[0] = far;
+                }
             }
             if let Ok(nu) = std::env::var("NU") {
                 s.bodies[0].material.poisson = nu.parse().unwrap();

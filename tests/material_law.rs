@@ -162,24 +162,40 @@ fn forces_are_the_energy_gradient_at_large_strain() {
 }
 
 #[test]
-fn neo_hookean_is_objective() {
-    // A rigid rotation R of a deformed free body leaves its energy unchanged and rotates its
-    // forces: E(R x) = E(x), f(R x) = R f(x). Both are exact in the continuum, and the corrected
-    // operator forms F from relative vectors only, so its bounds are round-off: 1e-12 of the
-    // energy and 1e-10 of the largest force (the forces are differences of terms ~1e3 times
-    // larger). The second-order operator is objective only as far as (a) its fits reproduce a
-    // linear field (the rotation is one of size 1): in this small block the corner particles'
-    // moment matrices are conditioned ~1e10 and reproduce it to ~3e-6 (measured), which moves
-    // the energy by ~2e-7 of itself, whatever the law; and (b) its residual stabilisation
-    // mu |sym(d n^T)|^2 pairs the current residual d with the reference bond direction n, which
-    // is objective only where d = 0 (every quadratic field; 3e-5 of the energy with 5 % of l0
-    // of random motion, both laws). So it gets a quadratic field without random part and the
-    // bounds 1e-6 (energy) and 1e-5 (forces), 6 and 3 times the measured 1.7e-7 and 3.4e-6.
-    for (model, noise, tol_e, tol_f) in [
-        (ElasticModel::Corrected, 0.05, 1e-12, 1e-10),
-        (ElasticModel::SecondOrder, 0.0, 1e-6, 1e-5),
+fn energy_models_are_objective() {
+    // A rigid rotation R (2.3 rad) of a deformed free body leaves its energy unchanged and
+    // rotates its forces: E(R x) = E(x), f(R x) = R f(x), exact in the continuum. The deformation
+    // is large (stretches 0.8-1.25, a quadratic bend) with 5 % of l0 of random motion, which the
+    // second-order operator's stabilisation carries (it pairs each bond's residual with the
+    // bond's current direction; with the reference direction the energy moved by 3e-5 of
+    // itself). Both laws. The corrected operator forms F from relative vectors only, so its
+    // bounds are round-off: 1e-12 of the energy and 1e-10 of the largest force (the forces are
+    // differences of terms ~1e3 times larger). The second-order fits reproduce the rotation (a
+    // linear field of size 1) only to ~3e-6 at this small block's corners, whose moment
+    // matrices are conditioned ~1e10 (measured), which moves the energy by ~2e-7 of itself and
+    // the forces by ~3e-6 of the largest: bounds 1e-6 and 1e-5.
+    for (model, law, tol_e, tol_f) in [
+        (
+            ElasticModel::Corrected,
+            MaterialLaw::NeoHookean,
+            1e-12,
+            1e-10,
+        ),
+        (
+            ElasticModel::SecondOrder,
+            MaterialLaw::NeoHookean,
+            1e-6,
+            1e-5,
+        ),
+        (
+            ElasticModel::SecondOrder,
+            MaterialLaw::SaintVenantKirchhoff,
+            1e-6,
+            1e-5,
+        ),
     ] {
-        let mut w = block3(model, MaterialLaw::NeoHookean, false);
+        let noise = 0.05;
+        let mut w = block3(model, law, false);
         let u = deformed(&w, noise);
         w.set_state(&u).unwrap();
         let e0 = w.strain_energy();
@@ -200,17 +216,17 @@ fn neo_hookean_is_objective() {
             .map(|i| (w.internal_force(i) - r * f0[i]).norm())
             .fold(0.0, f64::max);
         eprintln!(
-            "{model:?}: energy {:+.2e}, forces {:.2e} relative",
+            "{model:?} {law:?}: energy {:+.2e}, forces {:.2e} relative",
             e1 / e0 - 1.0,
             df / fmax
         );
         assert!(
             e0 > 0.0 && (e1 - e0).abs() < tol_e * e0,
-            "{model:?}: {e0} vs {e1}"
+            "{model:?} {law:?}: {e0} vs {e1}"
         );
         assert!(
             df < tol_f * fmax,
-            "{model:?}: forces off by {df:e} of {fmax:e}"
+            "{model:?} {law:?}: forces off by {df:e} of {fmax:e}"
         );
     }
 }

@@ -23,9 +23,12 @@
 //!   quadrature, d_a^2 W ~ d_aE : C : d_aE with the tangent C taken at zero strain;
 //! * residual energy V sum_j (w0_ij / n_i) mu |sym(d_ij n_ij^T)|^2 with d_ij the part of the
 //!   bond's motion that the local quadratic field does not explain,
-//!   d_ij = [u_j - u_i - H_i r0 - 1/2 G_i : r0 r0] / |r0|, n = r0 / |r0|: zero for every
-//!   quadratic field, positive for the sub-cell (hourglass) modes; mu, not lambda, so that it
-//!   does not lock near incompressibility.
+//!   d_ij = [u_j - u_i - H_i r0 - 1/2 G_i : r0 r0] / |r0|, n_ij = (x_j - x_i) / |x_j - x_i|
+//!   the bond's current direction: zero for every quadratic field, positive for the sub-cell
+//!   (hourglass) modes; mu, not lambda, so that it does not lock near incompressibility. A
+//!   rigid rotation R turns d into R d and n into R n, so the term is objective; at the
+//!   reference state n = r0 / |r0| and d = 0, so its linearisation is that of the reference
+//!   direction.
 //!
 //! Forces are -dE/dx of that one energy, in gather form over the stored (directed) bonds with the
 //! mirror index of each bond, so they conserve momentum and do not depend on threads.
@@ -378,12 +381,42 @@ where
         du - grad * r0 - q * 0.5
     }
 
-    /// dE/d(residual) of one bond: V w0/n_i mu (d + (d.n) n) / |r0| with d = res / |r0|.
+    /// Current unit direction n of a bond (reference vector `r0`, displacement difference `du`):
+    /// the stabilisation pairs the residual with it, so that a rigid rotation, which rotates
+    /// the residual, leaves the energy unchanged. Falls back to the reference direction for
+    /// coincident particles. Returns (n, |r0 + du|).
     #[inline(always)]
-    fn residual_conjugate(res: &Vect<D>, r0: &Vect<D>, c: f64) -> Vect<D> {
-        // c = V w0 / n_i mu / |r0|^2; mu |sym(d n^T)|^2 = mu/2 (|d|^2 + (d.n)^2).
-        let l2 = r0.norm_squared();
-        (res + r0 * (res.dot(r0) / l2)) * c
+    fn bond_direction(r0: &Vect<D>, du: &Vect<D>) -> (Vect<D>, f64) {
+        let r = r0 + du;
+        let len = r.norm();
+        if len > 1e-9 * r0.norm() {
+            (r / len, len)
+        } else {
+            (r0 / r0.norm(), 0.0)
+        }
+    }
+
+    /// Residual energy of one bond and its two partial derivatives: E_b = c/2 (|res|^2 +
+    /// (res.n)^2) with c = V w0 / n_i mu / |r0|^2 (mu |sym(d n^T)|^2 = mu/2 (|d|^2 + (d.n)^2),
+    /// d = res / |r0|) and n the bond's current direction. Returns (E_b, dE_b/d res, the direct
+    /// dE_b/d du through n: c (res.n) (I - n n^T) res / |r0 + du|).
+    #[inline(always)]
+    fn residual_terms(
+        res: &Vect<D>,
+        r0: &Vect<D>,
+        du: &Vect<D>,
+        c: f64,
+    ) -> (f64, Vect<D>, Vect<D>) {
+        let (n, len) = Self::bond_direction(r0, du);
+        let rn = res.dot(&n);
+        let energy = 0.5 * c * (res.norm_squared() + rn * rn);
+        let conj = (res + n * rn) * c;
+        let direct = if len > 0.0 {
+            (res - n * rn) * (c * rn / len)
+        } else {
+            Vect::<D>::zeros()
+        };
+        (energy, conj, direct)
     }
 
     /// Internal forces of the current state (one energy, gather form), with the per-body Lame
@@ -507,7 +540,8 @@ where
                     let r0 = bonds.r0[b];
                     let du = uu[bonds.nbr[b] as usize] - ui;
                     let res = Self::residual(&du, &r0, &h, &g);
-                    let rho = Self::residual_conjugate(&res, &r0, cres * w0 / r0.norm_squared());
+                    let (_, rho, _) =
+                        Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
                     a_i -= rho * r0.transpose();
                     if quad {
                         for a in 0..D {
@@ -531,7 +565,9 @@ where
                         }
                     }
                     let res = Self::residual(&du, &r0, &h, &g);
-                    out[k] = d + Self::residual_conjugate(&res, &r0, cres * w0 / r0.norm_squared());
+                    let (_, rho, direct) =
+                        Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
+                    out[k] = d + rho + direct;
                 }
             });
         let dbond = &s.dbond;
@@ -612,9 +648,7 @@ where
                 let r0 = bonds.r0[b];
                 let du = uu[bonds.nbr[b] as usize] - uu[i];
                 let res = Self::residual(&du, &r0, h, g);
-                let l2 = r0.norm_squared();
-                // mu/2 (|d|^2 + (d.n)^2), d = res / |r0|.
-                total += cres * w0 * 0.5 * (res.norm_squared() + res.dot(&r0).powi(2) / l2) / l2;
+                total += Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared()).0;
             }
         }
         total

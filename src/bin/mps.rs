@@ -87,6 +87,10 @@ enum Cmd {
         /// Write the bending front as a PNG (wall time against error).
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Also the cantilever at 16 across with second_order (41,728 particles; about 20
+        /// minutes more on 2 cores), for its order of convergence.
+        #[arg(long)]
+        fine: bool,
     },
     /// Run the paper's case 3 (cube hits a block; contact and fracture), both variants by default.
     Case3 {
@@ -313,9 +317,10 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             out,
             bending,
             plot,
+            fine,
         } => {
             use mps_solid::bench;
-            let front = bench::bending_front(quick)?;
+            let front = bench::bending_front(quick, fine)?;
             let front_md = bench::bending_markdown(&front, rayon::current_num_threads());
             if let Some(p) = &plot {
                 bench::write_front_png(&front, p)?;

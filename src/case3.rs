@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 
 use crate::output::{write_grid_png_3d, write_png_3d, Camera, Frame3d, Grid3d, Label3d};
 use crate::physics::{ContactOptions, ElasticModel, Material, MaterialLaw, SolverOptions};
-use crate::scene::{Body, BodyVelocity, Boundary, BoundaryKind, Gravity, Probe, Region, Scene};
+use crate::scene::{
+    Body, BodyVelocity, Boundary, BoundaryKind, Gravity, MirrorSpec, Probe, Region, Scene,
+};
 use crate::sim::{ParticleSnapshot, Simulation};
 use serde::{Deserialize, Serialize};
 
@@ -103,6 +105,15 @@ pub fn case3_scene_with(
         Hold::Cantilever => BLOCK[2] - 0.5 * CUBE_SIDE,
     };
     let tol = 0.25 * dp;
+    // The wall layers sit at the images of the block's first three across its clamped faces;
+    // the second-order model mirrors the block across them (docs/model.md, "Mirror faces"),
+    // the others hold them as a rigid grip.
+    let mirror = |z: f64, nz: f64| {
+        (model == ElasticModel::SecondOrder).then(|| MirrorSpec {
+            point: vec![0.0, 0.0, z],
+            normal: vec![0.0, 0.0, nz],
+        })
+    };
     let region = |min: [f64; 3], max: [f64; 3]| Region {
         min: min.to_vec(),
         max: max.to_vec(),
@@ -125,7 +136,7 @@ pub fn case3_scene_with(
             if fractured_surfaces { "on" } else { "off" },
             match hold {
                 Hold::Bridge => "it is held at both ends z = 0 and z = 2 m by three layers of clamped wall particles beyond each end (a bridge), and the cube hits it at mid-height",
-                Hold::Cantilever => "it stands on the ground: its base z = 0 is clamped by three layers of wall particles below it (a wall fixed at its foot), and the cube hits the top of its right half",
+                Hold::Cantilever => "it stands on the ground: its base z = 0 is clamped by three layers of wall particles below it (a wall fixed at its foot; second_order mirrors the block across z = 0 in them), and the cube hits the top of its right half",
             }
         ),
         dimension: 3,
@@ -163,7 +174,7 @@ pub fn case3_scene_with(
                 body: "block".into(),
                 region: region([-0.5 * bx, -by, -walls], [0.5 * bx, 0.0, -tol]),
                 axes: None,
-                mirror: None,
+                mirror: mirror(0.0, -1.0),
             },
             Boundary {
                 name: "top".into(),
@@ -171,7 +182,7 @@ pub fn case3_scene_with(
                 body: "block".into(),
                 region: region([-0.5 * bx, -by, bz + tol], [0.5 * bx, 0.0, bz + walls]),
                 axes: None,
-                mirror: None,
+                mirror: mirror(bz, 1.0),
             },
         ]
         .into_iter()

@@ -49,3 +49,25 @@ fn both_variants_are_valid_scene_files() {
     assert_eq!(sc.solver.fracture_strain, None);
     assert!(sc.solver.contact.enabled && sc.solver.contact.fractured_surfaces);
 }
+
+#[test]
+fn second_order_mirrors_the_block_across_its_clamped_faces() {
+    // With the second-order operator the clamp's wall layers are the block's mirror images
+    // (docs/model.md, "Mirror faces"): every wall particle must be the ghost of a block particle,
+    // 3 layers of 20 x 5 per clamped face at dp = 0.05 (one face standing, two as a bridge).
+    // The other operators keep the walls as a rigid grip (no mirror in the scene).
+    use mps_solid::case3::{case3_scene_with, Hold};
+    use mps_solid::scene::Model;
+    for (hold, faces) in [(Hold::Cantilever, 1), (Hold::Bridge, 2)] {
+        let sc = case3_scene_with(0.05, true, ElasticModel::SecondOrder, hold, EPS_MAX_USED);
+        assert!(sc.boundaries.iter().all(|b| b.mirror.is_some()));
+        let m = Model::<3>::build(&sc).unwrap();
+        let held = (0..m.world.len())
+            .filter(|&i| m.world.p.fix[i] != 0)
+            .count();
+        assert_eq!(held, 300 * faces, "{hold:?}");
+        assert_eq!(m.world.op.second.ghosts.len(), held, "{hold:?}");
+        let corrected = case3_scene_with(0.05, true, ElasticModel::Corrected, hold, EPS_MAX_USED);
+        assert!(corrected.boundaries.iter().all(|b| b.mirror.is_none()));
+    }
+}

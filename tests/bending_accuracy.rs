@@ -1,6 +1,7 @@
 //! Accuracy of the elastic operators in bending (issue 7), from the linearised model
 //! (src/linear.rs: static deflection by conjugate gradients, first mode by inverse iteration),
 //! against the converged FEM references of tools/fem_bending.py.
+mod common;
 use mps_solid::bending::{free_free_plate_f1, linear_bending, plate2d_scene, plate_reference};
 use mps_solid::linear::{field_at, Linearised};
 use mps_solid::physics::{ElasticModel, Vect};
@@ -278,25 +279,7 @@ fn assert_forces_are_the_energy_gradient(
             u.u[i] = shift;
         }
     }
-    w.set_state(&u).unwrap();
-    let fv: f64 = (0..w.len()).map(|i| w.internal_force(i).dot(&v[i])).sum();
-    let eps = 1e-6 * l0;
-    let mut e = [0.0; 2];
-    for (k, s) in [1.0, -1.0].iter().enumerate() {
-        let mut st = u.clone();
-        for i in 0..w.len() {
-            st.u[i] += v[i] * (s * eps);
-        }
-        w.set_state(&st).unwrap();
-        e[k] = w.strain_energy();
-    }
-    let de = (e[0] - e[1]) / (2.0 * eps);
-    assert!(fv.abs() > 0.0);
-    assert!(
-        (fv + de).abs() <= 1e-6 * fv.abs(),
-        "f.v = {fv:e}, -dE/du.v = {:e}",
-        -de
-    );
+    common::assert_forces_are_minus_the_energy_gradient_along(w, &u, &v, "second_order");
 }
 
 /// A mirror face finds the same ghosts and gives the same answer wherever the scene sits: the

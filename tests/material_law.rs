@@ -139,23 +139,11 @@ fn forces_are_the_energy_gradient_at_large_strain() {
                     }
                 })
                 .collect();
-            let fv: f64 = (0..w.len()).map(|i| w.internal_force(i).dot(&v[i])).sum();
-            let eps = 1e-6 * w.l0;
-            let mut e = [0.0; 2];
-            for (k, s) in [1.0, -1.0].iter().enumerate() {
-                let mut st = u.clone();
-                for (ui, vi) in st.u.iter_mut().zip(&v) {
-                    *ui += vi * (s * eps);
-                }
-                w.set_state(&st).unwrap();
-                e[k] = w.strain_energy();
-            }
-            let de = (e[0] - e[1]) / (2.0 * eps);
-            assert!(fv.abs() > 0.0 && e[0].is_finite());
-            assert!(
-                (fv + de).abs() <= 1e-6 * fv.abs(),
-                "{model:?} {law:?}: f.v = {fv:e}, -dE/du.v = {:e}",
-                -de
+            common::assert_forces_are_minus_the_energy_gradient_along(
+                &mut w,
+                &u,
+                &v,
+                &format!("{model:?} {law:?}"),
             );
         }
     }

@@ -96,3 +96,35 @@ pub fn built_library() -> std::path::PathBuf {
     .max_by_key(mtime)
     .unwrap_or_else(|| panic!("libmps_solid.so not found next to {}", exe.display()))
 }
+
+/// Checks that the internal forces at `state` are minus the gradient of the strain energy along
+/// `v`: f . v = -dE/du . v by central differences with eps = 1e-6 l0, to 1e-6 relative. The
+/// difference quotient's truncation is ~1e-10 relative and the round-off of E ~1e-11, so 1e-6
+/// is far below any error of a force term (a missing term is O(1)). Leaves `w` at a perturbed
+/// state.
+pub fn assert_forces_are_minus_the_energy_gradient_along(
+    w: &mut World<3>,
+    state: &mps_solid::physics::world::WorldState<3>,
+    v: &[Vect<3>],
+    what: &str,
+) {
+    w.set_state(state).unwrap();
+    let fv: f64 = (0..w.len()).map(|i| w.internal_force(i).dot(&v[i])).sum();
+    let eps = 1e-6 * w.l0;
+    let mut e = [0.0; 2];
+    for (k, s) in [1.0, -1.0].iter().enumerate() {
+        let mut st = state.clone();
+        for (ui, vi) in st.u.iter_mut().zip(v) {
+            *ui += vi * (s * eps);
+        }
+        w.set_state(&st).unwrap();
+        e[k] = w.strain_energy();
+    }
+    let de = (e[0] - e[1]) / (2.0 * eps);
+    assert!(fv.abs() > 0.0 && e[0].is_finite(), "{what}: f.v = {fv:e}");
+    assert!(
+        (fv + de).abs() <= 1e-6 * fv.abs(),
+        "{what}: f.v = {fv:e}, -dE/du.v = {:e}",
+        -de
+    );
+}

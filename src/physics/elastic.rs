@@ -38,6 +38,9 @@ pub struct ElasticOperator<const D: usize> {
     /// instead of concentrating its whole volume's stiffness on them (which would make it
     /// far stiffer than the stable step allows).
     pub vol: Vec<f64>,
+    /// Volume of particle i with all its bonds (m^d): l0^d, or the summation-by-parts
+    /// volume of a closed second-order body (module `sbp`).
+    pub base_vol: Vec<f64>,
     /// Particle spacing l0 (m).
     pub l0: f64,
     /// Second-order model: its bond weights (empty for the other models).
@@ -87,6 +90,7 @@ where
             k_inv: Vec::new(),
             span: Vec::new(),
             vol: vec![l0.powi(D as i32); n_particles],
+            base_vol: vec![l0.powi(D as i32); n_particles],
             l0,
             second: SecondOrder::default(),
         };
@@ -126,9 +130,9 @@ where
         }
         let n_now: f64 = bonds.of(i).map(|b| bonds.w0[b]).sum();
         self.vol[i] = if n_ref > 0.0 && n_now < n_ref {
-            self.volume * n_now / n_ref
+            self.base_vol[i] * n_now / n_ref
         } else {
-            self.volume
+            self.base_vol[i]
         };
     }
 

@@ -11,6 +11,7 @@ pub mod integrate;
 pub mod law;
 pub mod params;
 pub mod particles;
+pub mod sbp;
 pub mod second_order;
 pub mod world;
 

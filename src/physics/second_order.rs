@@ -79,6 +79,14 @@ pub struct SecondOrder<const D: usize> {
     pub re_factor: f64,
     /// Ghosts of mirror faces, sorted by ghost index (`world::MirrorFace`).
     pub ghosts: Vec<Ghost<D>>,
+    /// Summation-by-parts closure (module `sbp`): the correction of each bond's gradient
+    /// weight (1/m; empty without a closure).
+    pub closure_dg: Vec<Vect<D>>,
+    /// Whether particle i belongs to a closed body.
+    pub closable: Vec<bool>,
+    /// Whether particle i's weights carry the closure now (closable and none of its bonds
+    /// broken). Its volume then integrates the energy exactly, so it has no cell term.
+    pub closed: Vec<bool>,
 }
 
 /// A group member at the mirror image of a free particle (its master) across a mirror face.
@@ -163,6 +171,9 @@ where
             behind: vec![false; n],
             re_factor,
             ghosts: ghosts.to_vec(),
+            closure_dg: Vec::new(),
+            closable: Vec::new(),
+            closed: Vec::new(),
             n_ref: (0..n)
                 .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
                 .collect(),
@@ -190,6 +201,19 @@ where
             .binary_search_by_key(&(i as u32), |g| g.ghost)
             .ok()
             .map(|k| &self.ghosts[k])
+    }
+
+    /// Takes the summation-by-parts closure of module `sbp`: `dg` per bond, `closable` per
+    /// particle; refreshes the closable particles.
+    pub fn set_closure(&mut self, bonds: &Bonds<D>, l0: f64, dg: Vec<Vect<D>>, closable: Vec<bool>) {
+        self.closed = vec![false; closable.len()];
+        self.closure_dg = dg;
+        self.closable = closable;
+        for i in 0..self.closable.len() {
+            if self.closable[i] {
+                self.refresh(bonds, l0, i);
+            }
+        }
     }
 
     /// Weight of bond b in the fits and the residuals: w0, or 0 for a bond to a wall particle
@@ -286,6 +310,15 @@ where
         for b in bonds.of(i) {
             if self.weight(bonds, b) != 0.0 {
                 span += quantised(&bonds.r0[b], l0) * l0 * self.g[b].transpose();
+            }
+        }
+        if let Some(&true) = self.closable.get(i) {
+            let intact = bonds.of(i).all(|b| bonds.w0[b] > 0.0);
+            self.closed[i] = intact;
+            if intact {
+                for b in bonds.of(i) {
+                    self.g[b] += self.closure_dg[b];
+                }
             }
         }
         // A full-rank fit reproduces linear fields: sum r0 g^T = I to round-off.
@@ -521,7 +554,7 @@ where
                 // dW/dH = dW/dF = F S (first Piola-Kirchhoff), times the cell volume.
                 let mut a_i = f * stress * vol[i];
                 let mut b_i = [Mat::<D>::zeros(); D];
-                if quad {
+                if quad && !self.closed.get(i).copied().unwrap_or(false) {
                     let vc = vol[i] * cell;
                     for a in 0..D {
                         let ea = f.transpose() * g[a];
@@ -633,7 +666,7 @@ where
                     .energy(&e, mu, lambda)
                     .filter(|_| !inverted)
                     .unwrap_or(f64::INFINITY);
-            if self.quadratic[i] {
+            if self.quadratic[i] && !self.closed.get(i).copied().unwrap_or(false) {
                 for ga in g.iter() {
                     let ea = f.transpose() * ga;
                     total += vol[i] * cell * w(&((ea + ea.transpose()) * 0.5), mu, lambda);

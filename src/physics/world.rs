@@ -475,6 +475,32 @@ where
             &rigid,
             &ghosts,
         );
+        let mut op = op;
+        if options.model == super::params::ElasticModel::SecondOrder
+            && std::env::var_os("MPS_SBP").is_some()
+        {
+            let cl = super::sbp::close(
+                &p.x0,
+                &p.body,
+                &bonds,
+                &op.second,
+                l0,
+                options.re_factor,
+                bodies.len(),
+            );
+            for line in &cl.report {
+                eprintln!("sbp: {line}");
+            }
+            let closable: Vec<bool> = cl.vol.iter().map(|v| v.is_some()).collect();
+            for (i, v) in cl.vol.iter().enumerate() {
+                if let Some(v) = v {
+                    op.vol[i] = *v;
+                    op.base_vol[i] = *v;
+                    p.mass[i] = bodies[p.body[i] as usize].material.density * v;
+                }
+            }
+            op.second.set_closure(&bonds, l0, cl.dg, closable);
+        }
         let mut load_of = vec![u32::MAX; n];
         let mut ls = Vec::new();
         for (li, (name, members)) in loads.into_iter().enumerate() {

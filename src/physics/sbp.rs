@@ -20,7 +20,10 @@ use std::collections::HashMap;
 
 use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
+#[allow(unused_imports)]
+use super::par::*;
 use super::second_order::{Ghost, SecondOrder};
+use crate::par_iter_mut;
 
 /// End corrections of the cell-centred midpoint rule on the first three layers from a face:
 /// with them the 1D rule integrates quadratics exactly (Euler-Maclaurin: the midpoint sum of a
@@ -29,6 +32,12 @@ const END_CORRECTION: [f64; 3] = [1.0 / 12.0, -1.0 / 8.0, 1.0 / 24.0];
 
 /// Relative residual at which the conjugate gradients stop.
 const TOLERANCE: f64 = 1e-11;
+
+/// Largest size of the coarse level (blocks times fields).
+const MAX_COARSE: usize = 2500;
+
+/// Most conjugate-gradient iterations per axis.
+const MAX_ITERATIONS: usize = 5000;
 
 /// The 1D weights (in units of l0) of n >= 3 cell-centred points.
 fn weights_1d(n: usize) -> Vec<f64> {
@@ -188,8 +197,16 @@ where
     // The virtual body's own fits (its particles see full stencils at the mirror planes).
     let vb = Bonds::build(&vx, &vec![0; nv], re_factor * l0);
     let vso = SecondOrder::<D>::new(&vb, l0, re_factor, nv, &vec![false; nv], &[]);
-    if vso.quadratic.iter().any(|q| !q) || vso.full.iter().any(|f| !f) {
-        return Err("a particle has no full quadratic fit".into());
+    if vso.quadratic.iter().any(|q| !q) {
+        let bad = (0..nv).find(|&i| !vso.quadratic[i] || !vso.full[i]).unwrap_or(0);
+        return Err(format!(
+            "a particle has no full quadratic fit (virtual {bad} at lattice {:?} of {:?}, {} bonds, quadratic {} full {})",
+            idx[bad],
+            ext,
+            vb.of(bad).len(),
+            vso.quadratic[bad],
+            vso.full[bad]
+        ));
     }
     // Linear fields q_0 = 1, q_a = (x_a - c_a) / half_a.
     let mut centre = Vect::<D>::zeros();
@@ -230,78 +247,11 @@ where
             .ok_or("a fit's moment matrix is singular")?;
         row_gram.push(inv);
     }
-    let depth: usize = std::env::var("MPS_SBP_DEPTH")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(usize::MAX);
-    let active: Vec<bool> = idx
-        .iter()
-        .map(|k| (0..D).any(|a| k[a].min(ext[a] - 1 - k[a]) < depth))
-        .collect();
-    let project = |c: &mut [f64]| {
-        // c: per bond of the virtual body; project every row.
-        let mut mono = Vec::with_capacity(m);
-        for i in 0..nv {
-            let r = vb.of(i);
-            if !active[i] {
-                for bnd in r {
-                    c[bnd] = 0.0;
-                }
-                continue;
-            }
-            let mut pc = nalgebra::DVector::<f64>::zeros(m);
-            for bnd in r.clone() {
-                monomials::<D>(&(vb.r0[bnd] / l0), &mut mono);
-                for k in 0..m {
-                    pc[k] += mono[k] * c[bnd];
-                }
-            }
-            let lam = &row_gram[i] * pc;
-            for bnd in r {
-                monomials::<D>(&(vb.r0[bnd] / l0), &mut mono);
-                let mut s = 0.0;
-                for k in 0..m {
-                    s += mono[k] * lam[k];
-                }
-                c[bnd] -= s;
-            }
-        }
-    };
-    // The constraints of column k in local linear fields phi_0 = 1, phi_a = (x_a - x_k,a) / l0
-    // (the same span as the global fields, but not nearly dependent far from the centre):
-    // A c: sum_{b = i -> k} c_b phi(x_i - x_k) - phi(0) sum_{b of k} c_b, x_i - x_k = -r0_b.
-    let apply_a = |c: &[f64], y: &mut [f64]| {
-        y.iter_mut().for_each(|v| *v = 0.0);
-        for i in 0..nv {
-            let mut row_sum = 0.0;
-            for bnd in vb.of(i) {
-                let k = vb.nbr[bnd] as usize;
-                let r = vb.r0[bnd] / l0;
-                y[k * nq] += c[bnd];
-                for a in 0..D {
-                    y[k * nq + 1 + a] -= c[bnd] * r[a];
-                }
-                row_sum += c[bnd];
-            }
-            y[i * nq] -= row_sum;
-        }
-    };
-    // A^T y: bond b = i -> k: y_k0 - sum_a y_ka r0_a / l0 - y_i0.
-    let apply_at = |y: &[f64], c: &mut [f64]| {
-        for i in 0..nv {
-            for bnd in vb.of(i) {
-                let k = vb.nbr[bnd] as usize;
-                let r = vb.r0[bnd] / l0;
-                let mut s = y[k * nq] - y[i * nq];
-                for a in 0..D {
-                    s -= y[k * nq + 1 + a] * r[a];
-                }
-                c[bnd] = s;
-            }
-        }
-    };
+    let mut sys = NullSpaceConstraints::new(&vb, &row_gram, l0, D + 1);
+    sys.coarse_space(&idx, &ext);
     let nb = vb.len();
     let mut corr: Vec<Vect<D>> = vec![Vect::<D>::zeros(); nb];
+    let _ = &qv;
     let mut figures = Vec::new();
     for d in 0..D {
         // Target: t = -H dq/dx_d + E_d q - G_d^T H q.
@@ -358,47 +308,36 @@ where
             }
         }
         let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
-        // CG on (A P A^T) y = t; c = P A^T y.
-        let mut yv = vec![0.0; nv * nq];
-        let mut r = t.clone();
-        let mut p = r.clone();
-        let mut rr: f64 = r.iter().map(|v| v * v).sum();
-        let mut c = vec![0.0; nb];
-        let mut ap = vec![0.0; nv * nq];
-        let mut iters = 0;
-        while rr.sqrt() > TOLERANCE * tnorm && iters < 3000 {
-            apply_at(&p, &mut c);
-            project(&mut c);
-            apply_a(&c, &mut ap);
-            let pap: f64 = p.iter().zip(&ap).map(|(a, b)| a * b).sum();
-            if pap <= 0.0 {
-                break;
+        if std::env::var_os("MPS_SBP_SPECTRUM").is_some() && nv * nq <= 4000 {
+            let nn = nv * nq;
+            let mut mm = nalgebra::DMatrix::<f64>::zeros(nn, nn);
+            let mut e = vec![0.0; nn];
+            let mut cc = vec![0.0; vb.len()];
+            let mut col = vec![0.0; nn];
+            for j in 0..nn {
+                e.iter_mut().for_each(|x| *x = 0.0);
+                e[j] = 1.0;
+                sys.at_project(&e, &mut cc);
+                sys.apply(&cc, &mut col);
+                for i in 0..nn {
+                    mm[(i, j)] = col[i];
+                }
             }
-            let alpha = rr / pap;
-            for k in 0..yv.len() {
-                yv[k] += alpha * p[k];
-                r[k] -= alpha * ap[k];
+            let eig = mm.symmetric_eigen();
+            let mut ev: Vec<(f64, usize)> = eig.eigenvalues.iter().copied().zip(0..).collect();
+            ev.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+            let emax = ev.last().unwrap().0;
+            let tv = nalgebra::DVector::from_vec(t.clone());
+            let mut line = String::new();
+            for (k, (lam, j)) in ev.iter().take(60).enumerate() {
+                let comp = eig.eigenvectors.column(*j).dot(&tv);
+                if k < 60 {
+                    line += &format!(" [{:.1e} {:.1e}]", lam / emax, comp / tv.norm());
+                }
             }
-            let rr_new: f64 = r.iter().map(|v| v * v).sum();
-            let beta = rr_new / rr;
-            rr = rr_new;
-            for k in 0..p.len() {
-                p[k] = r[k] + beta * p[k];
-            }
-            iters += 1;
-            if iters % 500 == 0 && std::env::var_os("MPS_SBP_DEBUG").is_some() {
-                eprintln!("sbp: axis {d}: {iters}: {:.2e}", rr.sqrt() / tnorm);
-            }
+            eprintln!("sbp spectrum axis {d} (lambda/max, t component):{line}");
         }
-        apply_at(&yv, &mut c);
-        project(&mut c);
-        apply_a(&c, &mut ap);
-        let res = ap
-            .iter()
-            .zip(&t)
-            .map(|(a, b)| (a - b) * (a - b))
-            .sum::<f64>()
-            .sqrt();
+        let (c, iters, res) = sys.solve(&t, d);
         let gmax = vso.g.iter().map(|g| g.amax()).fold(0.0, f64::max);
         let mut cmax = 0.0f64;
         for i in 0..nv {
@@ -446,4 +385,357 @@ where
         ext,
         figures.join("; ")
     ))
+}
+
+/// The constraints on the corrections c_b (one per directed bond, for one axis): each row's
+/// corrections orthogonal to the quadratic monomials of its bonds (the fit stays exact), and
+/// each column's sums against the linear fields, in local coordinates phi_0 = 1,
+/// phi_a = (x_a - x_k,a) / l0, equal to a target. The least-norm solution is c = P A^T y with
+/// (A P A^T) y = t, solved by Jacobi-preconditioned conjugate gradients (matrix-free, per row
+/// and per column in parallel).
+struct NullSpaceConstraints<'a, const D: usize> {
+    bonds: &'a Bonds<D>,
+    mirror: Vec<u32>,
+    /// Monomials of every bond's r0 / l0 (quad_len(D) per bond).
+    mono: Vec<f64>,
+    /// Inverse Gram matrix of each row's monomials.
+    gram_inv: &'a [nalgebra::DMatrix<f64>],
+    l0: f64,
+    nq: usize,
+    /// Diagonal of A P A^T.
+    diag: Vec<f64>,
+    /// Two-level preconditioner: the block of each particle and the Cholesky factor of the
+    /// block-aggregated A P A^T (None: Jacobi only).
+    block: Vec<usize>,
+    coarse: Option<nalgebra::Cholesky<f64, nalgebra::Dyn>>,
+}
+
+impl<'a, const D: usize> NullSpaceConstraints<'a, D>
+where
+    Space: Dim<D>,
+{
+    fn new(
+        bonds: &'a Bonds<D>,
+        gram_inv: &'a [nalgebra::DMatrix<f64>],
+        l0: f64,
+        nq: usize,
+    ) -> Self {
+        let m = quad_len(D);
+        let mut mono = Vec::with_capacity(bonds.len() * m);
+        let mut tmp = Vec::with_capacity(m);
+        for b in 0..bonds.len() {
+            monomials::<D>(&(bonds.r0[b] / l0), &mut tmp);
+            mono.extend_from_slice(&tmp);
+        }
+        let n = bonds.start.len() - 1;
+        let mut sys = NullSpaceConstraints {
+            bonds,
+            mirror: super::second_order::mirror_index(bonds),
+            mono,
+            gram_inv,
+            l0,
+            nq,
+            diag: vec![0.0; n * nq],
+            block: Vec::new(),
+            coarse: None,
+        };
+        // diag = |P A^T e_(k,a)|^2: the incoming bonds of k lie in other rows (one entry each:
+        // |P e_b|^2 = 1 - mono_b^T Ginv mono_b), the constant field also has -1 on all of row
+        // k's own bonds.
+        let keep = |b: usize, i: usize| -> f64 {
+            let mb = &sys.mono[b * m..(b + 1) * m];
+            let g = &sys.gram_inv[i];
+            let mut s = 0.0;
+            for r in 0..m {
+                for c in 0..m {
+                    s += mb[r] * g[(r, c)] * mb[c];
+                }
+            }
+            1.0 - s
+        };
+        let mut diag = vec![0.0; n * nq];
+        for k in 0..n {
+            for b in bonds.of(k) {
+                let back = sys.mirror[b] as usize; // j -> k, in row j
+                let j = bonds.nbr[b] as usize;
+                let kb = keep(back, j);
+                let r = bonds.r0[b] / l0; // x_j - x_k
+                diag[k * nq] += kb;
+                for a in 0..D {
+                    diag[k * nq + 1 + a] += kb * r[a] * r[a];
+                }
+            }
+            let mut ones = vec![-1.0; bonds.of(k).len()];
+            sys.project_row(k, &mut ones);
+            diag[k * nq] += ones.iter().map(|v| v * v).sum::<f64>();
+        }
+        sys.diag = diag;
+        sys
+    }
+
+    /// The coarse level: the particles grouped in lattice blocks of w >= 4 layers per axis (so
+    /// that A P A^T, which reaches 4 layers, couples adjacent blocks only), the coarse matrix
+    /// R (A P A^T) R^T probed with 3^D colours (blocks of one colour are 3 apart) times nq
+    /// fields, and its Cholesky factor. The slow modes of the one-level iteration are smooth
+    /// over many layers (the row projections make the constraints a high-order operator);
+    /// the coarse level removes them.
+    fn coarse_space(&mut self, idx: &[[usize; D]], ext: &[usize; D]) {
+        let nq = self.nq;
+        let mut w = 4usize;
+        let nblocks = |w: usize| ext.iter().map(|e| e.div_ceil(w)).product::<usize>();
+        while nblocks(w) * nq > MAX_COARSE {
+            w += 1;
+        }
+        let nbx: Vec<usize> = ext.iter().map(|e| e.div_ceil(w)).collect();
+        let nb = nblocks(w);
+        let bcoord = |k: &[usize; D]| -> [usize; D] { std::array::from_fn(|a| k[a] / w) };
+        let flat = |c: &[usize; D]| -> usize {
+            let mut f = 0;
+            for a in (0..D).rev() {
+                f = f * nbx[a] + c[a];
+            }
+            f
+        };
+        self.block = idx.iter().map(|k| flat(&bcoord(k))).collect();
+        let coords: Vec<[usize; D]> = {
+            let mut v = vec![[0usize; D]; nb];
+            for k in idx {
+                let c = bcoord(k);
+                v[flat(&c)] = c;
+            }
+            v
+        };
+        let colour = |c: &[usize; D]| -> usize {
+            let mut f = 0;
+            for a in (0..D).rev() {
+                f = f * 3 + c[a] % 3;
+            }
+            f
+        };
+        let nc = nb * nq;
+        let mut mc = nalgebra::DMatrix::<f64>::zeros(nc, nc);
+        let n = idx.len();
+        let mut v = vec![0.0; n * nq];
+        let mut c = vec![0.0; self.bonds.len()];
+        let mut mv = vec![0.0; n * nq];
+        let ncol = 3usize.pow(D as u32);
+        for col in 0..ncol {
+            for q in 0..nq {
+                v.iter_mut().for_each(|x| *x = 0.0);
+                for k in 0..n {
+                    if colour(&coords[self.block[k]]) == col {
+                        v[k * nq + q] = 1.0;
+                    }
+                }
+                self.at_project(&v, &mut c);
+                self.apply(&c, &mut mv);
+                // Sum per block; the source is the one block of this colour next to it.
+                let mut sums = vec![0.0; nc];
+                for k in 0..n {
+                    for q2 in 0..nq {
+                        sums[self.block[k] * nq + q2] += mv[k * nq + q2];
+                    }
+                }
+                for (bi, bc) in coords.iter().enumerate() {
+                    // The neighbour (or itself) of colour `col`.
+                    let mut src = None;
+                    let mut off = [0i64; D];
+                    'search: loop {
+                        let cand: Option<[usize; D]> = (0..D)
+                            .map(|a| {
+                                let x = bc[a] as i64 + off[a];
+                                (x >= 0 && (x as usize) < nbx[a]).then_some(x as usize)
+                            })
+                            .collect::<Option<Vec<usize>>>()
+                            .map(|v| std::array::from_fn(|a| v[a]));
+                        if let Some(cc) = cand {
+                            if colour(&cc) == col {
+                                src = Some(flat(&cc));
+                                break 'search;
+                            }
+                        }
+                        // Next offset in {-1, 0, 1}^D.
+                        let mut a = 0;
+                        loop {
+                            if a == D {
+                                break 'search;
+                            }
+                            off[a] += 1;
+                            if off[a] <= 1 {
+                                break;
+                            }
+                            off[a] = -1;
+                            a += 1;
+                        }
+                        if off.iter().all(|&o| o == 0) && false {
+                            break;
+                        }
+                    }
+                    if let Some(sb) = src {
+                        for q2 in 0..nq {
+                            mc[(bi * nq + q2, sb * nq + q)] += sums[bi * nq + q2];
+                        }
+                    }
+                }
+            }
+        }
+        // Symmetrise (round-off) and regularise the global null space (the polynomial
+        // combinations that no correction reaches).
+        let mut trace = 0.0;
+        for r in 0..nc {
+            trace += mc[(r, r)];
+            for c2 in 0..r {
+                let a = 0.5 * (mc[(r, c2)] + mc[(c2, r)]);
+                mc[(r, c2)] = a;
+                mc[(c2, r)] = a;
+            }
+        }
+        let eps = 1e-10 * trace / nc as f64;
+        for r in 0..nc {
+            mc[(r, r)] += eps;
+        }
+        self.coarse = mc.cholesky();
+    }
+
+    fn project_row(&self, i: usize, c: &mut [f64]) {
+        let m = quad_len(D);
+        let start = self.bonds.start[i] as usize;
+        let mut pc = [0.0; 9];
+        for (k, v) in c.iter().enumerate() {
+            let mb = &self.mono[(start + k) * m..(start + k + 1) * m];
+            for r in 0..m {
+                pc[r] += mb[r] * v;
+            }
+        }
+        let g = &self.gram_inv[i];
+        let mut lam = [0.0; 9];
+        for r in 0..m {
+            for c2 in 0..m {
+                lam[r] += g[(r, c2)] * pc[c2];
+            }
+        }
+        for (k, v) in c.iter_mut().enumerate() {
+            let mb = &self.mono[(start + k) * m..(start + k + 1) * m];
+            let mut s = 0.0;
+            for r in 0..m {
+                s += mb[r] * lam[r];
+            }
+            *v -= s;
+        }
+    }
+
+    /// c = P A^T y, per row.
+    fn at_project(&self, y: &[f64], c: &mut [f64]) {
+        let nq = self.nq;
+        let mut rows: Vec<&mut [f64]> = Vec::with_capacity(self.bonds.start.len() - 1);
+        let mut rest: &mut [f64] = c;
+        for i in 0..self.bonds.start.len() - 1 {
+            let (head, tail) = rest.split_at_mut(self.bonds.of(i).len());
+            rows.push(head);
+            rest = tail;
+        }
+        par_iter_mut!(rows).enumerate().for_each(|(i, row)| {
+            for (k, b) in self.bonds.of(i).enumerate() {
+                let j = self.bonds.nbr[b] as usize;
+                let r = self.bonds.r0[b] / self.l0;
+                let mut s = y[j * nq] - y[i * nq];
+                for a in 0..D {
+                    s -= y[j * nq + 1 + a] * r[a];
+                }
+                row[k] = s;
+            }
+            self.project_row(i, row);
+        });
+    }
+
+    /// y = A c, per column: the incoming bonds (j -> k: phi(x_j - x_k) = r0 of k -> j) minus
+    /// the constant field on row k's own bonds.
+    fn apply(&self, c: &[f64], y: &mut [f64]) {
+        let nq = self.nq;
+        let mut cols: Vec<&mut [f64]> = y.chunks_mut(nq).collect();
+        par_iter_mut!(cols)
+            .enumerate()
+            .for_each(|(k, yk)| {
+                yk.iter_mut().for_each(|v| *v = 0.0);
+                for b in self.bonds.of(k) {
+                    let cin = c[self.mirror[b] as usize];
+                    let r = self.bonds.r0[b] / self.l0;
+                    yk[0] += cin - c[b];
+                    for a in 0..D {
+                        yk[1 + a] += cin * r[a];
+                    }
+                }
+            });
+    }
+
+    /// Least-norm corrections for target t; returns (c, iterations, |A c - t|).
+    fn solve(&self, t: &[f64], axis: usize) -> (Vec<f64>, usize, f64) {
+        let n = t.len();
+        let nb = self.bonds.len();
+        let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let nq = self.nq;
+        let precond = |r: &[f64], z: &mut [f64]| {
+            for k in 0..n {
+                z[k] = if self.diag[k] > 0.0 { r[k] / self.diag[k] } else { 0.0 };
+            }
+            if let Some(ch) = &self.coarse {
+                let nc = ch.l_dirty().nrows();
+                let mut rc = nalgebra::DVector::<f64>::zeros(nc);
+                for k in 0..n {
+                    rc[self.block[k / nq] * nq + k % nq] += r[k];
+                }
+                let zc = ch.solve(&rc);
+                for k in 0..n {
+                    z[k] += zc[self.block[k / nq] * nq + k % nq];
+                }
+            }
+        };
+        let mut yv = vec![0.0; n];
+        let mut r = t.to_vec();
+        let mut z = vec![0.0; n];
+        precond(&r, &mut z);
+        let mut p = z.clone();
+        let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+        let mut c = vec![0.0; nb];
+        let mut ap = vec![0.0; n];
+        let mut iters = 0;
+        let debug = std::env::var_os("MPS_SBP_DEBUG").is_some();
+        loop {
+            let rnorm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if rnorm <= TOLERANCE * tnorm || iters >= std::env::var("MPS_SBP_ITERS").ok().and_then(|v| v.parse().ok()).unwrap_or(MAX_ITERATIONS) {
+                break;
+            }
+            self.at_project(&p, &mut c);
+            self.apply(&c, &mut ap);
+            let pap: f64 = p.iter().zip(&ap).map(|(a, b)| a * b).sum();
+            if pap <= 0.0 {
+                break;
+            }
+            let alpha = rz / pap;
+            for k in 0..n {
+                yv[k] += alpha * p[k];
+                r[k] -= alpha * ap[k];
+            }
+            precond(&r, &mut z);
+            let rz_new: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for k in 0..n {
+                p[k] = z[k] + beta * p[k];
+            }
+            iters += 1;
+            if debug && iters % 250 == 0 {
+                eprintln!("sbp: axis {axis}: {iters}: {:.2e}", rnorm / tnorm);
+            }
+        }
+        self.at_project(&yv, &mut c);
+        self.apply(&c, &mut ap);
+        let res = ap
+            .iter()
+            .zip(t)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            .sqrt();
+        (c, iters, res)
+    }
 }

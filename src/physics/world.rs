@@ -499,7 +499,11 @@ where
                     p.mass[i] = bodies[p.body[i] as usize].material.density * v;
                 }
             }
-            op.second.set_closure(&bonds, l0, cl.dg, closable);
+            let mut dg = cl.dg;
+            if std::env::var_os("MPS_SBP_NODG").is_some() {
+                dg.iter_mut().for_each(|g| *g = Vect::<D>::zeros());
+            }
+            op.second.set_closure(&bonds, l0, dg, closable);
         }
         let mut load_of = vec![u32::MAX; n];
         let mut ls = Vec::new();

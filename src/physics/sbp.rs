@@ -33,11 +33,22 @@ const END_CORRECTION: [f64; 3] = [1.0 / 12.0, -1.0 / 8.0, 1.0 / 24.0];
 /// Relative residual at which the conjugate gradients stop.
 const TOLERANCE: f64 = 1e-11;
 
-/// Largest size of the coarse level (blocks times fields).
-const MAX_COARSE: usize = 2500;
+/// Layers from a face whose stencils differ from the interior's by the fits' reach (2 layers)
+/// plus the rows that carry corrections.
+const REACH: usize = 8;
+
+/// Layers from a face along a long axis whose rows have their own corrections; the rows
+/// beyond are tied (translation invariance).
+const TIE: usize = 5;
+
+/// Layers from a face whose rows carry a correction.
+const ROWS: usize = 3;
+
+/// Conjugate-gradient iterations per restart cycle.
+const CYCLE: usize = 1000;
 
 /// Most conjugate-gradient iterations per axis.
-const MAX_ITERATIONS: usize = 5000;
+const MAX_ITERATIONS: usize = 20000;
 
 /// The 1D weights (in units of l0) of n >= 3 cell-centred points.
 fn weights_1d(n: usize) -> Vec<f64> {
@@ -189,6 +200,85 @@ where
         return Err("it is less than 3 particles across".into());
     }
     let w1: Vec<Vec<f64>> = ext.iter().map(|&e| weights_1d(e)).collect();
+    // The reduced box: along an axis longer than 2 REACH + 1 layers, the layers between the
+    // first REACH and the last REACH are all alike (the same stencils, weights and targets),
+    // so the problem is solved on a box of 2 REACH + 1 layers there, with the rows between
+    // the first and last ROWS layers tied to one correction (translation invariance), and the
+    // result is copied back by layer class. Its conditioning no longer grows with the length.
+    let small: [usize; D] = std::array::from_fn(|a| ext[a].min(2 * REACH + 1));
+    let big_of = |a: usize, j: usize| -> usize {
+        if small[a] == ext[a] || j < REACH {
+            j
+        } else if j + 1 + REACH > small[a] {
+            ext[a] - (small[a] - j)
+        } else {
+            REACH
+        }
+    };
+    let small_of = |a: usize, j: usize| -> usize {
+        if small[a] == ext[a] || j < REACH {
+            j
+        } else if j + 1 + REACH > ext[a] {
+            small[a] - (ext[a] - j)
+        } else {
+            REACH
+        }
+    };
+    let full_idx = idx;
+    let full_nv = nv;
+    let mut idx: Vec<[usize; D]> = Vec::new();
+    let mut sidx: Vec<[usize; D]> = Vec::new();
+    {
+        let mut k = [0usize; D];
+        'cells: loop {
+            sidx.push(k);
+            idx.push(std::array::from_fn(|a| big_of(a, k[a])));
+            let mut a = D;
+            loop {
+                if a == 0 {
+                    break 'cells;
+                }
+                a -= 1;
+                k[a] += 1;
+                if k[a] < small[a] {
+                    break;
+                }
+                k[a] = 0;
+            }
+        }
+    }
+    let nv = idx.len();
+    let vx: Vec<Vect<D>> = sidx
+        .iter()
+        .map(|k| Vect::<D>::from_fn(|a, _| lo[a] + k[a] as f64 * l0))
+        .collect();
+    // Rows tied by class: along the long axes the rows ROWS..small-ROWS share one class.
+    let tie_key = |k: &[usize; D]| -> [usize; D] {
+        std::array::from_fn(|a| {
+            if small[a] < ext[a] && k[a] >= TIE && k[a] + TIE < small[a] {
+                usize::MAX
+            } else {
+                k[a]
+            }
+        })
+    };
+    let mut classes: HashMap<[usize; D], u32> = HashMap::new();
+    let tie: Vec<u32> = sidx
+        .iter()
+        .map(|k| {
+            let key = tie_key(k);
+            let nc = classes.len() as u32;
+            *classes.entry(key).or_insert(nc)
+        })
+        .collect();
+    // Rows at least ROWS layers from every face of the full box carry no correction.
+    let active: Vec<bool> = idx
+        .iter()
+        .map(|k| {
+            std::env::var_os("MPS_SBP_ALLROWS").is_some()
+                || (0..D).any(|a| k[a].min(ext[a] - 1 - k[a]) < ROWS)
+        })
+        .collect();
     let vol_unit = l0.powi(D as i32);
     let hv: Vec<f64> = idx
         .iter()
@@ -212,7 +302,7 @@ where
     let mut centre = Vect::<D>::zeros();
     let mut half = Vect::<D>::zeros();
     for a in 0..D {
-        half[a] = 0.5 * ext[a] as f64 * l0;
+        half[a] = 0.5 * small[a] as f64 * l0;
         centre[a] = lo[a] - 0.5 * l0 + half[a];
     }
     let nq = D + 1;
@@ -247,8 +337,18 @@ where
             .ok_or("a fit's moment matrix is singular")?;
         row_gram.push(inv);
     }
-    let mut sys = NullSpaceConstraints::new(&vb, &row_gram, l0, D + 1);
-    sys.coarse_space(&idx, &ext);
+    // Rows of one class must have the same bonds in the same order.
+    {
+        let mut first: HashMap<u32, usize> = HashMap::new();
+        for (i, &t) in tie.iter().enumerate() {
+            let f = *first.entry(t).or_insert(i);
+            let (a, b) = (vb.of(f), vb.of(i));
+            if a.len() != b.len() || a.zip(b).any(|(x, y)| (vb.r0[x] - vb.r0[y]).norm() > 1e-9 * l0) {
+                return Err("rows of one class differ (internal)".into());
+            }
+        }
+    }
+    let sys = NullSpaceConstraints::new(&vb, &row_gram, l0, D + 1, tie, active);
     let nb = vb.len();
     let mut corr: Vec<Vect<D>> = vec![Vect::<D>::zeros(); nb];
     let _ = &qv;
@@ -359,10 +459,14 @@ where
     let key = |r: &Vect<D>| -> Vec<i64> { r.iter().map(|c| (c / l0 * 4.0).round() as i64).collect() };
     let mut lost = 0.0f64;
     let mut updates = Vec::new();
+    let small_index: HashMap<[usize; D], usize> =
+        sidx.iter().enumerate().map(|(i, k)| (*k, i)).collect();
     for (vi, &i) in real.iter().enumerate() {
         let world: HashMap<Vec<i64>, usize> =
             bonds.of(i).map(|bnd| (key(&bonds.r0[bnd]), bnd)).collect();
-        for bnd in vb.of(vi) {
+        let k = full_idx[vi];
+        let si = small_index[&std::array::from_fn(|a| small_of(a, k[a]))];
+        for bnd in vb.of(si) {
             match world.get(&key(&vb.r0[bnd])) {
                 Some(&wb) => updates.push((wb, corr[bnd])),
                 None => lost = lost.max(corr[bnd].amax()),
@@ -376,13 +480,15 @@ where
         out.dg[wb] = c;
     }
     for (vi, &i) in real.iter().enumerate() {
-        out.vol[i] = Some(hv[vi]);
+        let k = full_idx[vi];
+        out.vol[i] = Some(vol_unit * (0..D).map(|a| w1[a][k[a]]).product::<f64>());
     }
     Ok(format!(
-        "closed, {} particles ({} virtual, {:?} across); {}",
+        "closed, {} particles ({} virtual, {:?} across, reduced to {:?}); {}",
         real.len(),
-        nv,
+        full_nv,
         ext,
+        small,
         figures.join("; ")
     ))
 }
@@ -404,10 +510,10 @@ struct NullSpaceConstraints<'a, const D: usize> {
     nq: usize,
     /// Diagonal of A P A^T.
     diag: Vec<f64>,
-    /// Two-level preconditioner: the block of each particle and the Cholesky factor of the
-    /// block-aggregated A P A^T (None: Jacobi only).
-    block: Vec<usize>,
-    coarse: Option<nalgebra::Cholesky<f64, nalgebra::Dyn>>,
+    /// Rows that carry a correction.
+    active: Vec<bool>,
+    /// Rows of each class.
+    members: Vec<Vec<u32>>,
 }
 
 impl<'a, const D: usize> NullSpaceConstraints<'a, D>
@@ -419,6 +525,8 @@ where
         gram_inv: &'a [nalgebra::DMatrix<f64>],
         l0: f64,
         nq: usize,
+        tie: Vec<u32>,
+        active: Vec<bool>,
     ) -> Self {
         let m = quad_len(D);
         let mut mono = Vec::with_capacity(bonds.len() * m);
@@ -436,8 +544,15 @@ where
             l0,
             nq,
             diag: vec![0.0; n * nq],
-            block: Vec::new(),
-            coarse: None,
+            active,
+            members: {
+                let nc = tie.iter().map(|&t| t as usize + 1).max().unwrap_or(0);
+                let mut m = vec![Vec::new(); nc];
+                for (i, &t) in tie.iter().enumerate() {
+                    m[t as usize].push(i as u32);
+                }
+                m
+            },
         };
         // diag = |P A^T e_(k,a)|^2: the incoming bonds of k lie in other rows (one entry each:
         // |P e_b|^2 = 1 - mono_b^T Ginv mono_b), the constant field also has -1 on all of row
@@ -471,130 +586,6 @@ where
         }
         sys.diag = diag;
         sys
-    }
-
-    /// The coarse level: the particles grouped in lattice blocks of w >= 4 layers per axis (so
-    /// that A P A^T, which reaches 4 layers, couples adjacent blocks only), the coarse matrix
-    /// R (A P A^T) R^T probed with 3^D colours (blocks of one colour are 3 apart) times nq
-    /// fields, and its Cholesky factor. The slow modes of the one-level iteration are smooth
-    /// over many layers (the row projections make the constraints a high-order operator);
-    /// the coarse level removes them.
-    fn coarse_space(&mut self, idx: &[[usize; D]], ext: &[usize; D]) {
-        let nq = self.nq;
-        let mut w = 4usize;
-        let nblocks = |w: usize| ext.iter().map(|e| e.div_ceil(w)).product::<usize>();
-        while nblocks(w) * nq > MAX_COARSE {
-            w += 1;
-        }
-        let nbx: Vec<usize> = ext.iter().map(|e| e.div_ceil(w)).collect();
-        let nb = nblocks(w);
-        let bcoord = |k: &[usize; D]| -> [usize; D] { std::array::from_fn(|a| k[a] / w) };
-        let flat = |c: &[usize; D]| -> usize {
-            let mut f = 0;
-            for a in (0..D).rev() {
-                f = f * nbx[a] + c[a];
-            }
-            f
-        };
-        self.block = idx.iter().map(|k| flat(&bcoord(k))).collect();
-        let coords: Vec<[usize; D]> = {
-            let mut v = vec![[0usize; D]; nb];
-            for k in idx {
-                let c = bcoord(k);
-                v[flat(&c)] = c;
-            }
-            v
-        };
-        let colour = |c: &[usize; D]| -> usize {
-            let mut f = 0;
-            for a in (0..D).rev() {
-                f = f * 3 + c[a] % 3;
-            }
-            f
-        };
-        let nc = nb * nq;
-        let mut mc = nalgebra::DMatrix::<f64>::zeros(nc, nc);
-        let n = idx.len();
-        let mut v = vec![0.0; n * nq];
-        let mut c = vec![0.0; self.bonds.len()];
-        let mut mv = vec![0.0; n * nq];
-        let ncol = 3usize.pow(D as u32);
-        for col in 0..ncol {
-            for q in 0..nq {
-                v.iter_mut().for_each(|x| *x = 0.0);
-                for k in 0..n {
-                    if colour(&coords[self.block[k]]) == col {
-                        v[k * nq + q] = 1.0;
-                    }
-                }
-                self.at_project(&v, &mut c);
-                self.apply(&c, &mut mv);
-                // Sum per block; the source is the one block of this colour next to it.
-                let mut sums = vec![0.0; nc];
-                for k in 0..n {
-                    for q2 in 0..nq {
-                        sums[self.block[k] * nq + q2] += mv[k * nq + q2];
-                    }
-                }
-                for (bi, bc) in coords.iter().enumerate() {
-                    // The neighbour (or itself) of colour `col`.
-                    let mut src = None;
-                    let mut off = [0i64; D];
-                    'search: loop {
-                        let cand: Option<[usize; D]> = (0..D)
-                            .map(|a| {
-                                let x = bc[a] as i64 + off[a];
-                                (x >= 0 && (x as usize) < nbx[a]).then_some(x as usize)
-                            })
-                            .collect::<Option<Vec<usize>>>()
-                            .map(|v| std::array::from_fn(|a| v[a]));
-                        if let Some(cc) = cand {
-                            if colour(&cc) == col {
-                                src = Some(flat(&cc));
-                                break 'search;
-                            }
-                        }
-                        // Next offset in {-1, 0, 1}^D.
-                        let mut a = 0;
-                        loop {
-                            if a == D {
-                                break 'search;
-                            }
-                            off[a] += 1;
-                            if off[a] <= 1 {
-                                break;
-                            }
-                            off[a] = -1;
-                            a += 1;
-                        }
-                        if off.iter().all(|&o| o == 0) && false {
-                            break;
-                        }
-                    }
-                    if let Some(sb) = src {
-                        for q2 in 0..nq {
-                            mc[(bi * nq + q2, sb * nq + q)] += sums[bi * nq + q2];
-                        }
-                    }
-                }
-            }
-        }
-        // Symmetrise (round-off) and regularise the global null space (the polynomial
-        // combinations that no correction reaches).
-        let mut trace = 0.0;
-        for r in 0..nc {
-            trace += mc[(r, r)];
-            for c2 in 0..r {
-                let a = 0.5 * (mc[(r, c2)] + mc[(c2, r)]);
-                mc[(r, c2)] = a;
-                mc[(c2, r)] = a;
-            }
-        }
-        let eps = 1e-10 * trace / nc as f64;
-        for r in 0..nc {
-            mc[(r, r)] += eps;
-        }
-        self.coarse = mc.cholesky();
     }
 
     fn project_row(&self, i: usize, c: &mut [f64]) {
@@ -644,8 +635,34 @@ where
                 }
                 row[k] = s;
             }
-            self.project_row(i, row);
+            if self.active[i] {
+                self.project_row(i, row);
+            } else {
+                row.iter_mut().for_each(|v| *v = 0.0);
+            }
         });
+        // Tie: every row of a class gets the sum over the class (T T^T; the projection is the
+        // same for all rows of a class, so it commutes).
+        let mut sum = Vec::new();
+        for members in &self.members {
+            if members.len() < 2 {
+                continue;
+            }
+            let first = members[0] as usize;
+            let len = self.bonds.of(first).len();
+            sum.clear();
+            sum.resize(len, 0.0);
+            for &i in members {
+                let st = self.bonds.start[i as usize] as usize;
+                for k in 0..len {
+                    sum[k] += c[st + k];
+                }
+            }
+            for &i in members {
+                let st = self.bonds.start[i as usize] as usize;
+                c[st..st + len].copy_from_slice(&sum);
+            }
+        }
     }
 
     /// y = A c, per column: the incoming bonds (j -> k: phi(x_j - x_k) = r0 of k -> j) minus
@@ -673,59 +690,60 @@ where
         let n = t.len();
         let nb = self.bonds.len();
         let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let nq = self.nq;
         let precond = |r: &[f64], z: &mut [f64]| {
             for k in 0..n {
-                z[k] = if self.diag[k] > 0.0 { r[k] / self.diag[k] } else { 0.0 };
-            }
-            if let Some(ch) = &self.coarse {
-                let nc = ch.l_dirty().nrows();
-                let mut rc = nalgebra::DVector::<f64>::zeros(nc);
-                for k in 0..n {
-                    rc[self.block[k / nq] * nq + k % nq] += r[k];
-                }
-                let zc = ch.solve(&rc);
-                for k in 0..n {
-                    z[k] += zc[self.block[k / nq] * nq + k % nq];
-                }
+                z[k] = if std::env::var_os("MPS_SBP_NOPC").is_some() { r[k] } else if self.diag[k] > 0.0 { r[k] / self.diag[k] } else { 0.0 };
             }
         };
         let mut yv = vec![0.0; n];
-        let mut r = t.to_vec();
-        let mut z = vec![0.0; n];
-        precond(&r, &mut z);
-        let mut p = z.clone();
-        let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
         let mut c = vec![0.0; nb];
         let mut ap = vec![0.0; n];
+        let mut z = vec![0.0; n];
         let mut iters = 0;
         let debug = std::env::var_os("MPS_SBP_DEBUG").is_some();
-        loop {
-            let rnorm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if rnorm <= TOLERANCE * tnorm || iters >= std::env::var("MPS_SBP_ITERS").ok().and_then(|v| v.parse().ok()).unwrap_or(MAX_ITERATIONS) {
-                break;
-            }
-            self.at_project(&p, &mut c);
+        // Restarted conjugate gradients: each cycle starts from the true residual of the best
+        // iterate so far. The system is singular (the polynomial fields no correction reaches)
+        // and ill-conditioned; its updated residual drifts from the true one in long cycles.
+        let mut best = f64::INFINITY;
+        'cycles: for _ in 0..MAX_ITERATIONS / CYCLE {
+            self.at_project(&yv, &mut c);
             self.apply(&c, &mut ap);
-            let pap: f64 = p.iter().zip(&ap).map(|(a, b)| a * b).sum();
-            if pap <= 0.0 {
+            let mut r: Vec<f64> = t.iter().zip(&ap).map(|(a, b)| a - b).collect();
+            let rtrue = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if debug {
+                eprintln!("sbp: axis {axis}: {iters}: true residual {:.2e}", rtrue / tnorm);
+            }
+            if rtrue <= TOLERANCE * tnorm || rtrue >= best {
                 break;
             }
-            let alpha = rz / pap;
-            for k in 0..n {
-                yv[k] += alpha * p[k];
-                r[k] -= alpha * ap[k];
-            }
+            best = rtrue;
             precond(&r, &mut z);
-            let rz_new: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
-            let beta = rz_new / rz;
-            rz = rz_new;
-            for k in 0..n {
-                p[k] = z[k] + beta * p[k];
-            }
-            iters += 1;
-            if debug && iters % 250 == 0 {
-                eprintln!("sbp: axis {axis}: {iters}: {:.2e}", rnorm / tnorm);
+            let mut p = z.clone();
+            let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+            for _ in 0..CYCLE {
+                self.at_project(&p, &mut c);
+                self.apply(&c, &mut ap);
+                let pap: f64 = p.iter().zip(&ap).map(|(a, b)| a * b).sum();
+                if pap <= 0.0 || rz <= 0.0 {
+                    continue 'cycles;
+                }
+                let alpha = rz / pap;
+                for k in 0..n {
+                    yv[k] += alpha * p[k];
+                    r[k] -= alpha * ap[k];
+                }
+                iters += 1;
+                let rnorm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if rnorm <= 0.1 * TOLERANCE * tnorm {
+                    continue 'cycles;
+                }
+                precond(&r, &mut z);
+                let rz_new: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+                let beta = rz_new / rz;
+                rz = rz_new;
+                for k in 0..n {
+                    p[k] = z[k] + beta * p[k];
+                }
             }
         }
         self.at_project(&yv, &mut c);

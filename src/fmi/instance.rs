@@ -657,6 +657,14 @@ impl Instance {
             sim.bonds(),
             sim.max_dt()
         ));
+        // What only the built model knows (the scene's own warnings were logged at
+        // instantiation): second-order bodies without the closure at their free faces.
+        let known = self.scene.warnings();
+        for w in sim.warnings() {
+            if !known.contains(w) {
+                self.warn(w.to_string());
+            }
+        }
         self.sim = Some(sim);
         self.stale = false;
         self.refresh_outputs()

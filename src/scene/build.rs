@@ -21,7 +21,8 @@ where
 {
     pub world: World<D>,
     pub probes: Vec<ProbeAt<D>>,
-    /// Under-resolved geometry (see `scene::resolution`); the same as `Scene::warnings`.
+    /// Under-resolved geometry (see `scene::resolution`; the same as `Scene::warnings`), and
+    /// second-order bodies without the closure at their free faces (module `physics::sbp`).
     pub warnings: Vec<SceneWarning>,
 }
 
@@ -251,6 +252,17 @@ where
         };
         let world = World::new(dp, scene.solver.clone(), bodies, groups, loads, gravity)
             .map_err(|e| err("scene", e.to_string()))?;
+        for (k, r) in world.closure.iter().enumerate() {
+            if let Err(why) = r {
+                warnings.push(SceneWarning {
+                    field: format!("bodies[{k}]"),
+                    message: format!(
+                        "second_order keeps its plain fits at the free faces of body '{}' ({why}): its summation-by-parts closure needs a body that fills one lattice box (with its mirror images), so there the particle quadrature of the weak form is first order",
+                        scene.bodies[k].name
+                    ),
+                });
+            }
+        }
         let mut probes = Vec::new();
         for (k, p) in scene.probes.iter().enumerate() {
             let point = vect::<D>(&p.point);

@@ -153,27 +153,35 @@ where
     if real.iter().any(|&i| so.rigid[i]) {
         return Err("it has a rigid grip (a clamp without a mirror face)".into());
     }
-    // Mirror planes (unit normal, offset n.x) from the ghost-master pairs of this body.
-    let mut planes: Vec<(Vect<D>, f64)> = Vec::new();
+    // Mirror planes (unit normal, a point on the plane) from the ghost-master pairs of this
+    // body. The closure needs a lattice box, so the planes are axis-aligned: the normal is
+    // snapped to its axis (its round-off times a coordinate of 1e6 m would move the images).
+    let mut planes: Vec<(Vect<D>, Vect<D>)> = Vec::new();
     for &i in &members {
         if let Some(g) = ghost_of.get(&(i as u32)) {
             let (xg, xm) = (x0[g.ghost as usize], x0[g.master as usize]);
-            let nrm = (xg - xm).normalize();
-            let off = nrm.dot(&((xg + xm) * 0.5));
+            let d = xg - xm;
+            let a = d.iamax();
+            if (d.norm() - d[a].abs()) > 1e-6 * d.norm() {
+                return Err("a mirror face is not normal to an axis".into());
+            }
+            let mut nrm = Vect::<D>::zeros();
+            nrm[a] = d[a].signum();
+            let point = (xg + xm) * 0.5;
             if !planes
                 .iter()
-                .any(|(m, o)| (m - nrm).norm() < 1e-6 && (o - off).abs() < 1e-6 * l0)
+                .any(|(m, p)| *m == nrm && (p - point).dot(&nrm).abs() < 1e-6 * l0)
             {
-                planes.push((nrm, off));
+                planes.push((nrm, point));
             }
         }
     }
     // The virtual body: the real particles and their images across every mirror plane.
     let mut vx: Vec<Vect<D>> = real.iter().map(|&i| x0[i]).collect();
-    for (nrm, off) in &planes {
+    for (nrm, point) in &planes {
         for &i in &real {
             let x = x0[i];
-            vx.push(x - nrm * (2.0 * (nrm.dot(&x) - off)));
+            vx.push(x - nrm * (2.0 * nrm.dot(&(x - point))));
         }
     }
     let nv = vx.len();
@@ -257,9 +265,11 @@ where
         }
     }
     let nv = idx.len();
+    // Positions relative to the box's first particle: the closure is translation invariant,
+    // and the bonds' reference vectors then carry no round-off of a far-away origin.
     let vx: Vec<Vect<D>> = sidx
         .iter()
-        .map(|k| Vect::<D>::from_fn(|a, _| lo[a] + k[a] as f64 * l0))
+        .map(|k| Vect::<D>::from_fn(|a, _| k[a] as f64 * l0))
         .collect();
     // Rows tied by class: along the long axes the rows TIE..small-TIE share one class.
     let tie_key = |k: &[usize; D]| -> [usize; D] {
@@ -296,7 +306,7 @@ where
     let mut half = Vect::<D>::zeros();
     for a in 0..D {
         half[a] = 0.5 * small[a] as f64 * l0;
-        centre[a] = lo[a] - 0.5 * l0 + half[a];
+        centre[a] = -0.5 * l0 + half[a];
     }
     let nq = D + 1;
     let q_at = |x: &Vect<D>, q: usize| -> f64 {

@@ -358,13 +358,13 @@ fn closed_free_faces_pass_the_integration_constraint() {
     let ku = Linearised::new(w).unwrap().stiffness_times(&ustar);
     let mut worst: f64 = 0.0;
     let mut checked = 0;
-    for i in 0..w.len() {
+    for (i, k) in ku.iter().enumerate() {
         let x = w.p.x0[i];
         if x[2] > -0.1 {
             continue;
         }
         let mg = w.p.mass[i] * 9.81;
-        let r = (ku[i] + Vect::<3>::new(0.0, 0.0, mg)) / mg;
+        let r = (k + Vect::<3>::new(0.0, 0.0, mg)) / mg;
         worst = worst.max(r.amax());
         checked += 1;
     }

@@ -205,7 +205,13 @@ where
 
     /// Takes the summation-by-parts closure of module `sbp`: `dg` per bond, `closable` per
     /// particle; refreshes the closable particles.
-    pub fn set_closure(&mut self, bonds: &Bonds<D>, l0: f64, dg: Vec<Vect<D>>, closable: Vec<bool>) {
+    pub fn set_closure(
+        &mut self,
+        bonds: &Bonds<D>,
+        l0: f64,
+        dg: Vec<Vect<D>>,
+        closable: Vec<bool>,
+    ) {
         self.closed = vec![false; closable.len()];
         self.closure_dg = dg;
         self.closable = closable;

@@ -724,3 +724,27 @@ where
         (c, iters, res)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::weights_1d;
+
+    /// The end-corrected midpoint weights integrate x^0..x^3 exactly over [0, n] for every
+    /// n >= 3 (the closure's compatibility needs quadratics in the volume and cubics on the
+    /// faces); the plain midpoint rule misses x^2 by n / 12.
+    #[test]
+    fn end_corrected_weights_integrate_cubics() {
+        for n in 3..20usize {
+            let w = weights_1d(n);
+            assert!(w.iter().all(|&v| v > 0.5), "n = {n}: {w:?}");
+            for k in 0..4 {
+                let sum: f64 = (0..n).map(|i| w[i] * (i as f64 + 0.5).powi(k)).sum();
+                let exact = (n as f64).powi(k + 1) / (k + 1) as f64;
+                assert!(
+                    (sum - exact).abs() < 1e-12 * exact.max(1.0),
+                    "n = {n}, x^{k}: {sum} vs {exact}"
+                );
+            }
+        }
+    }
+}

@@ -6,7 +6,7 @@
 //! summation-by-parts closure (module `physics::sbp`) does, to ~1e-11 m g (its plain fits left
 //! -0.35 / +0.53 / -0.18 m g on the free end's layers). Printed by layer from the free end for
 //! the second-order and corrected operators. `cargo run --release --example consistency_probe`
-use mps_solid::cases::{case1_closed_form, case1_scene};
+use mps_solid::cases::{case1_closed_field, case1_scene};
 use mps_solid::linear::Linearised;
 use mps_solid::physics::{ElasticModel, Vect};
 use mps_solid::scene::Model;
@@ -18,14 +18,7 @@ fn main() {
         let s = case1_scene(0.025, model, None);
         let m = Model::<3>::build(&s).unwrap();
         let w = &m.world;
-        let ustar: Vec<Vect<3>> = (0..w.len())
-            .map(|i| {
-                let x = w.p.x0[i];
-                let (ux, uz) = case1_closed_form(x[0], x[1], -x[2]);
-                let (uy, _) = case1_closed_form(x[1], x[0], -x[2]);
-                Vect::<3>::new(ux, uy, uz)
-            })
-            .collect();
+        let ustar = case1_closed_field(&w.p.x0);
         let ku = Linearised::new(w).unwrap().stiffness_times(&ustar);
         println!("{model:?}: (K u* - f_gravity) / (m g), rows z, columns x (y = 0.0125 m)");
         println!("  z (m)      x=0.0875               x=0.0625               x=0.0125");

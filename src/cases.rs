@@ -140,6 +140,18 @@ pub fn case1_closed_form(x: f64, y: f64, s: f64) -> (f64, f64) {
     (ux, -us)
 }
 
+/// Case 1's closed form as a 3D displacement field at reference positions (x, y, z = -s) (m):
+/// the lateral components by symmetry of (u_x, u_y), the axial one from either.
+pub fn case1_closed_field(x0: &[crate::physics::Vect<3>]) -> Vec<crate::physics::Vect<3>> {
+    x0.iter()
+        .map(|x| {
+            let (ux, uz) = case1_closed_form(x[0], x[1], -x[2]);
+            let (uy, _) = case1_closed_form(x[1], x[0], -x[2]);
+            crate::physics::Vect::<3>::new(ux, uy, uz)
+        })
+        .collect()
+}
+
 /// How the simply supported end of case 2 is modelled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Support {

@@ -3,7 +3,7 @@
 //! against the converged FEM references of tools/fem_bending.py.
 mod common;
 use mps_solid::bending::{free_free_plate_f1, linear_bending, plate2d_scene, plate_reference};
-use mps_solid::cases::{case1_closed_form, case1_scene};
+use mps_solid::cases::{case1_closed_field, case1_scene};
 use mps_solid::linear::{field_at, Linearised};
 use mps_solid::physics::{ElasticModel, Vect};
 use mps_solid::scene::Model;
@@ -347,14 +347,7 @@ fn closed_free_faces_pass_the_integration_constraint() {
         "closure: {:?}",
         w.closure
     );
-    let ustar: Vec<Vect<3>> = (0..w.len())
-        .map(|i| {
-            let x = w.p.x0[i];
-            let (ux, uz) = case1_closed_form(x[0], x[1], -x[2]);
-            let (uy, _) = case1_closed_form(x[1], x[0], -x[2]);
-            Vect::<3>::new(ux, uy, uz)
-        })
-        .collect();
+    let ustar = case1_closed_field(&w.p.x0);
     let ku = Linearised::new(w).unwrap().stiffness_times(&ustar);
     let mut worst: f64 = 0.0;
     let mut checked = 0;

@@ -15,7 +15,8 @@
 //! cell-centred midpoint rule does neither near a face, its end-corrected tensor product does
 //! (weights 1 + 1/12, 1 - 1/8, 1 + 1/24 on the first three layers; by symmetry exact for cubics).
 //! Mirror faces are interior to the body's mirrored extension, which is the box the closure is
-//! built on. Bodies that are not a filled lattice box (after mirroring) keep the plain fits.
+//! built on, in the lattice's own frame (a turned body gets the same closure, volumes and stable
+//! step). Bodies that are not a filled lattice box (after mirroring) keep the plain fits.
 //!
 //! The least-norm corrections solve (A P A^T) y = t (A: the column sums, P: the projection on
 //! each row's quadratic null space), a sixth-order-like operator whose condition grows as the
@@ -77,6 +78,26 @@ pub struct Closure<const D: usize> {
     pub dg: Vec<Vect<D>>,
     /// Per body: closed (with the solve's figures) or why not.
     pub report: Vec<Result<String, String>>,
+}
+
+/// Orthonormal lattice axes (as columns) from particle i's bonds of length l0: the first bond
+/// direction, then each next one orthogonal to those taken.
+fn lattice_frame<const D: usize>(bonds: &Bonds<D>, i: usize, l0: f64) -> Option<Mat<D>> {
+    let mut axes: Vec<Vect<D>> = Vec::with_capacity(D);
+    for b in bonds.of(i) {
+        let r = bonds.r0[b];
+        if (r.norm() - l0).abs() > 1e-6 * l0 {
+            continue;
+        }
+        let e = r / r.norm();
+        if axes.iter().all(|a| a.dot(&e).abs() < 1e-6) {
+            axes.push(e);
+            if axes.len() == D {
+                break;
+            }
+        }
+    }
+    (axes.len() == D).then(|| Mat::<D>::from_columns(&axes))
 }
 
 /// Number of monomials of degree 1 and 2 in D variables.
@@ -152,13 +173,19 @@ where
     if real.iter().any(|&i| so.rigid[i]) {
         return Err("it has a rigid grip (a clamp without a mirror face)".into());
     }
+    // The lattice's own frame (its axes from the first particle's bonds of length l0) and
+    // positions relative to that particle in it: the closure of a turned or moved body is the
+    // same to round-off, and so are its volumes, masses and stable step.
+    let frame = lattice_frame(bonds, real[0], l0).ok_or("its particles are not on a lattice")?;
+    let xref = x0[real[0]];
+    let loc = |i: usize| -> Vect<D> { frame.transpose() * (x0[i] - xref) };
     // Mirror planes (unit normal, a point on the plane) from the ghost-master pairs of this
-    // body. The closure needs a lattice box, so the planes are axis-aligned: the normal is
-    // snapped to its axis (its round-off times a coordinate of 1e6 m would move the images).
+    // body. The closure needs a lattice box, so the planes are normal to a lattice axis: the
+    // normal is snapped to it.
     let mut planes: Vec<(Vect<D>, Vect<D>)> = Vec::new();
     for &i in &members {
         if let Some(g) = ghost_of.get(&(i as u32)) {
-            let (xg, xm) = (x0[g.ghost as usize], x0[g.master as usize]);
+            let (xg, xm) = (loc(g.ghost as usize), loc(g.master as usize));
             let d = xg - xm;
             let a = d.iamax();
             if (d.norm() - d[a].abs()) > 1e-6 * d.norm() {
@@ -176,10 +203,10 @@ where
         }
     }
     // The virtual body: the real particles and their images across every mirror plane.
-    let mut vx: Vec<Vect<D>> = real.iter().map(|&i| x0[i]).collect();
+    let mut vx: Vec<Vect<D>> = real.iter().map(|&i| loc(i)).collect();
     for (nrm, point) in &planes {
         for &i in &real {
-            let x = x0[i];
+            let x = loc(i);
             vx.push(x - nrm * (2.0 * nrm.dot(&(x - point))));
         }
     }
@@ -441,13 +468,15 @@ where
     let small_index: HashMap<[usize; D], usize> =
         sidx.iter().enumerate().map(|(i, k)| (*k, i)).collect();
     for (vi, &i) in real.iter().enumerate() {
-        let world: HashMap<Vec<i64>, usize> =
-            bonds.of(i).map(|bnd| (key(&bonds.r0[bnd]), bnd)).collect();
+        let world: HashMap<Vec<i64>, usize> = bonds
+            .of(i)
+            .map(|bnd| (key(&(frame.transpose() * bonds.r0[bnd])), bnd))
+            .collect();
         let k = full_idx[vi];
         let si = small_index[&std::array::from_fn(|a| small_of(a, k[a]))];
         for bnd in vb.of(si) {
             match world.get(&key(&vb.r0[bnd])) {
-                Some(&wb) => updates.push((wb, corr[bnd])),
+                Some(&wb) => updates.push((wb, frame * corr[bnd])),
                 None => lost = lost.max(corr[bnd].amax()),
             }
         }

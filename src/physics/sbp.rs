@@ -319,7 +319,7 @@ where
         .collect();
     // The virtual body's own fits (its particles see full stencils at the mirror planes).
     let vb = Bonds::build(&vx, &vec![0; nv], re_factor * l0);
-    let vso = SecondOrder::<D>::new(&vb, l0, re_factor, nv, &vec![false; nv], &[]);
+    let mut vso = SecondOrder::<D>::new(&vb, l0, re_factor, nv, &vec![false; nv], &[]);
     if vso.quadratic.iter().any(|q| !q) {
         return Err("a particle's neighbourhood has no quadratic fit".into());
     }
@@ -361,6 +361,31 @@ where
             .try_inverse()
             .ok_or("a fit's moment matrix is singular")?;
         row_gram.push(inv);
+    }
+    // The fits' exactness for quadratic fields to round-off: the pseudo-inverse of a corner's
+    // moment matrix leaves ~1e-7 of a weight, enough to make the constraints of one axis
+    // inconsistent at that level (the solve then stalls at a few 1e-6 of its target). One
+    // least-norm correction per row inside its bonds' span fixes it.
+    for i in 0..nv {
+        for d in 0..D {
+            let mut e = nalgebra::DVector::<f64>::zeros(m);
+            for bnd in vb.of(i) {
+                mono_of(bnd, &mut mono);
+                for r in 0..m {
+                    e[r] += vso.g[bnd][d] * l0 * mono[r];
+                }
+            }
+            e[d] -= 1.0;
+            let lam = &row_gram[i] * e;
+            for bnd in vb.of(i) {
+                mono_of(bnd, &mut mono);
+                let mut dv = 0.0;
+                for r in 0..m {
+                    dv += mono[r] * lam[r];
+                }
+                vso.g[bnd][d] -= dv / l0;
+            }
+        }
     }
     // Rows of one class must have the same bonds in the same order.
     {
@@ -476,7 +501,8 @@ where
         let si = small_index[&std::array::from_fn(|a| small_of(a, k[a]))];
         for bnd in vb.of(si) {
             match world.get(&key(&vb.r0[bnd])) {
-                Some(&wb) => updates.push((wb, frame * corr[bnd])),
+                // The world's plain weight becomes the refined fit's plus the correction.
+                Some(&wb) => updates.push((wb, frame * (vso.g[bnd] + corr[bnd]) - so.g[wb])),
                 None => lost = lost.max(corr[bnd].amax()),
             }
         }

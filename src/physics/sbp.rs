@@ -366,7 +366,7 @@ where
     // moment matrix leaves ~1e-7 of a weight, enough to make the constraints of one axis
     // inconsistent at that level (the solve then stalls at a few 1e-6 of its target). One
     // least-norm correction per row inside its bonds' span fixes it.
-    for i in 0..nv {
+    for (i, gram_inv) in row_gram.iter().enumerate() {
         for d in 0..D {
             let mut e = nalgebra::DVector::<f64>::zeros(m);
             for bnd in vb.of(i) {
@@ -376,7 +376,7 @@ where
                 }
             }
             e[d] -= 1.0;
-            let lam = &row_gram[i] * e;
+            let lam = gram_inv * e;
             for bnd in vb.of(i) {
                 mono_of(bnd, &mut mono);
                 let mut dv = 0.0;

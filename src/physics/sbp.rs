@@ -170,6 +170,9 @@ where
         .copied()
         .filter(|i| !ghost_of.contains_key(&(*i as u32)))
         .collect();
+    if real.is_empty() {
+        return Err("it has no particles of its own".into());
+    }
     if real.iter().any(|&i| so.rigid[i]) {
         return Err("it has a rigid grip (a clamp without a mirror face)".into());
     }
@@ -498,7 +501,9 @@ where
             .map(|bnd| (key(&(frame.transpose() * bonds.r0[bnd])), bnd))
             .collect();
         let k = full_idx[vi];
-        let si = small_index[&std::array::from_fn(|a| small_of(a, k[a]))];
+        let Some(&si) = small_index.get(&std::array::from_fn(|a| small_of(a, k[a]))) else {
+            return Err("a particle has no layer class (internal)".into());
+        };
         for bnd in vb.of(si) {
             match world.get(&key(&vb.r0[bnd])) {
                 // The world's plain weight becomes the refined fit's plus the correction.

@@ -3,7 +3,7 @@
 //! residual K u* - f_gravity per particle, in units of the particle's weight m g, is then the
 //! error of the particle quadrature of the weak form (nodal integration). The corrected
 //! operator's free end and side faces do not satisfy it (0.4-1 m g); the second-order operator's
-//! summation-by-parts closure (module `physics::sbp`) does, to ~1e-11 m g (its plain fits left
+//! summation-by-parts closure (module `physics::sbp`) does, to ~1e-8 m g (its plain fits left
 //! -0.35 / +0.53 / -0.18 m g on the free end's layers). Printed by layer from the free end for
 //! the second-order and corrected operators. `cargo run --release --example consistency_probe`
 use mps_solid::cases::{case1_closed_field, case1_scene};

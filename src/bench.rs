@@ -75,20 +75,15 @@ pub fn run_row(case: u8, dp: f64, dt: Option<f64>) -> Result<Row, String> {
 }
 
 /// Force-loop throughput on one thread: directed bonds per second per force pass (case 2,
-/// dp = 0.025, 300 steps).
-pub fn single_thread_throughput() -> Result<f64, String> {
+/// dp = 0.025, 300 steps, with `model`).
+pub fn single_thread_throughput(model: ElasticModel) -> Result<f64, String> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .map_err(|e| e.to_string())?;
     pool.install(|| {
-        let mut sim = Simulation::new(&case2_scene(
-            0.025,
-            ElasticModel::Corrected,
-            None,
-            Support::Face,
-        ))
-        .map_err(|e| e.to_string())?;
+        let mut sim = Simulation::new(&case2_scene(0.025, model, None, Support::Face))
+            .map_err(|e| e.to_string())?;
         let dt = sim.max_dt();
         let start = Instant::now();
         sim.advance_to(300.0 * dt).map_err(|e| e.to_string())?;
@@ -119,7 +114,7 @@ pub fn stability_probe(factor: f64) -> String {
 /// The Markdown report.
 pub fn markdown(
     rows: &[Row],
-    single: Option<f64>,
+    single: &[(&str, f64)],
     stability: &[(f64, String)],
     fmu: Option<(f64, f64)>,
     threads: usize,
@@ -148,8 +143,8 @@ pub fn markdown(
             r.note
         );
     }
-    if let Some(s) = single {
-        let _ = writeln!(out, "\nSingle-thread 3D force loop (case 2, dp = 0.025): {s:.3e} pair-updates/s per core (a pair-update = one directed bond evaluated in one of the two force passes of a step).");
+    for (model, s) in single {
+        let _ = writeln!(out, "\nSingle-thread 3D force loop (case 2, dp = 0.025, {model}): {s:.3e} pair-updates/s per core (a pair-update = one directed bond evaluated in one of the two force passes of a step).");
     }
     if let Some((f, d)) = fmu {
         let _ = writeln!(out, "\nFMU overhead (case 2, dp = 0.025, 600 communication steps of 1 ms, probe outputs read after each): FMI instance {f:.2} s, direct Simulation {d:.2} s, overhead {:+.1}%.", 100.0 * (f / d - 1.0));

@@ -349,7 +349,13 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 eprintln!("bench: case 3");
                 rows.push(bench::case3_row()?);
             }
-            let single = bench::single_thread_throughput().ok();
+            let single: Vec<(&str, f64)> = [
+                ("corrected", ElasticModel::Corrected),
+                ("second_order", ElasticModel::SecondOrder),
+            ]
+            .into_iter()
+            .filter_map(|(name, m)| Some((name, bench::single_thread_throughput(m).ok()?)))
+            .collect();
             let fmu = bench::fmu_overhead().ok();
             let stability: Vec<(f64, String)> = if quick {
                 vec![]
@@ -359,8 +365,13 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     .map(|&f| (f, bench::stability_probe(f)))
                     .collect()
             };
-            let md = bench::markdown(&rows, single, &stability, fmu, rayon::current_num_threads())
-                + "\n"
+            let md = bench::markdown(
+                &rows,
+                &single,
+                &stability,
+                fmu,
+                rayon::current_num_threads(),
+            ) + "\n"
                 + &front_md;
             println!("{md}");
             if let Some(path) = out {

@@ -571,24 +571,9 @@ where
                     }
                 }
                 let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
-                for b in range.clone() {
-                    let w0 = self.weight(bonds, b);
-                    if w0 == 0.0 {
-                        continue;
-                    }
-                    let r0 = bonds.r0[b];
-                    let du = uu[bonds.nbr[b] as usize] - ui;
-                    let res = Self::residual(&du, &r0, &h, &g);
-                    let (_, rho, _) =
-                        Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
-                    a_i -= rho * r0.transpose();
-                    if quad {
-                        for a in 0..D {
-                            b_i[a] -= rho * r0.transpose() * (0.5 * r0[a]);
-                        }
-                    }
-                }
-                for (k, b) in range.enumerate() {
+                // The residual terms of each bond, evaluated once: their direct part goes to
+                // the bond's output, their conjugate also into A and B.
+                for (k, b) in range.clone().enumerate() {
                     let w0 = self.weight(bonds, b);
                     if w0 == 0.0 {
                         out[k] = Vect::<D>::zeros();
@@ -596,6 +581,22 @@ where
                     }
                     let r0 = bonds.r0[b];
                     let du = uu[bonds.nbr[b] as usize] - ui;
+                    let res = Self::residual(&du, &r0, &h, &g);
+                    let (_, rho, direct) =
+                        Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
+                    let rr = rho * r0.transpose();
+                    a_i -= rr;
+                    if quad {
+                        for a in 0..D {
+                            b_i[a] -= rr * (0.5 * r0[a]);
+                        }
+                    }
+                    out[k] = rho + direct;
+                }
+                for (k, b) in range.enumerate() {
+                    if self.weight(bonds, b) == 0.0 {
+                        continue;
+                    }
                     let mut d = a_i * self.g[b];
                     if quad {
                         let hb = &self.h[b];
@@ -603,10 +604,7 @@ where
                             d += ba * hb.row(a).transpose();
                         }
                     }
-                    let res = Self::residual(&du, &r0, &h, &g);
-                    let (_, rho, direct) =
-                        Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
-                    out[k] = d + rho + direct;
+                    out[k] += d;
                 }
             });
         let dbond = &s.dbond;

@@ -9,6 +9,10 @@ use mps_solid::scene::{Model, Scene};
 use serde_json::Value;
 
 fn small2d(velocity: [f64; 2], fractured_surfaces: bool) -> World<2> {
+    small2d_with(velocity, fractured_surfaces, "corrected")
+}
+
+fn small2d_with(velocity: [f64; 2], fractured_surfaces: bool, model: &str) -> World<2> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut v: Value = serde_json::from_str(
         &std::fs::read_to_string(root.join("tests/data/small2d.json")).unwrap(),
@@ -18,6 +22,7 @@ fn small2d(velocity: [f64; 2], fractured_surfaces: bool) -> World<2> {
     v["gravity"] = serde_json::json!({ "vector": [0.0, 0.0] });
     v["bodies"][0]["velocity"] = serde_json::json!(velocity);
     v["solver"] = serde_json::json!({
+        "model": model,
         "fracture_strain": 0.01,
         "contact": { "fractured_surfaces": fractured_surfaces }
     });
@@ -33,8 +38,13 @@ fn total(w: &World<2>) -> f64 {
 /// after it, largest mean over 10 consecutive steps after it, broken pairs). The first step
 /// stops the held particles (their kinetic energy is taken out by the holder), so the
 /// reference is the energy after it.
-fn run(mut w: World<2>, t_end: f64) -> (f64, f64, f64, u64) {
-    let dt = w.max_dt();
+fn run(w: World<2>, t_end: f64) -> (f64, f64, f64, u64) {
+    run_at(w, t_end, 1.0)
+}
+
+/// `run` at `factor` times the automatic step.
+fn run_at(mut w: World<2>, t_end: f64, factor: f64) -> (f64, f64, f64, u64) {
+    let dt = w.max_dt() * factor;
     w.step(dt).unwrap();
     let e0 = total(&w);
     let mut e = vec![];
@@ -73,5 +83,28 @@ fn fracture_on_impact_creates_no_energy() {
             emax <= e0 * 1.02,
             "v = {vel:?}: energy rose from {e0} J to {emax} J"
         );
+    }
+}
+
+/// Open defect (issue 7): below the automatic step the same impacts create energy, with both
+/// operators. The rises come in the steps in which bonds break: re-fitting a particle's
+/// operator to its remaining bonds (`ElasticOperator::refresh_particle`) can raise its strain
+/// energy at fixed positions, e.g. 25.1 J -> 70.3 J on 2 broken pairs (corrected, v = -y, half
+/// the automatic step: 23 of 64 refreshes raise it, by 85 J in all); steps without breaks
+/// conserve to 2 J. Measured, largest total after the first step: corrected +15.9 % (0.5 x the
+/// automatic step) and +20.9 % (0.25 x); second_order +46 % and an overlap stop at the
+/// automatic step (`examples/fracture_energy_dt.rs`). Bound as in the test above (10-step
+/// mean, 0.1 %). Fails today; run with `--ignored`.
+#[test]
+#[ignore = "open defect: an operator refresh at a bond break can raise the strain energy"]
+fn fracture_creates_no_energy_at_any_step() {
+    for model in ["corrected", "second_order"] {
+        for factor in [1.0, 0.5, 0.25] {
+            let (e0, _, mean10, _) = run_at(small2d_with([0.0, -5.0], true, model), 5e-3, factor);
+            assert!(
+                mean10 <= e0 * 1.001,
+                "{model}, {factor} x the automatic step: energy rose from {e0} J to {mean10} J (10-step mean)"
+            );
+        }
     }
 }

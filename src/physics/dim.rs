@@ -98,7 +98,7 @@ impl Dim<2> for Space {
         a.is_finite()
     }
     fn sym_pinv(m: &Mat<2>) -> Mat<2> {
-        sym_pinv_impl::<2>(m)
+        sym_pinv_above::<2>(m, 1e-10)
     }
 }
 
@@ -153,7 +153,7 @@ impl Dim<3> for Space {
         a.iter().all(|c| c.is_finite())
     }
     fn sym_pinv(m: &Mat<3>) -> Mat<3> {
-        sym_pinv_impl::<3>(m)
+        sym_pinv_above::<3>(m, 1e-10)
     }
 }
 
@@ -220,12 +220,14 @@ pub fn sym_eigen<const D: usize>(m: &Mat<D>) -> ([f64; D], Mat<D>) {
 
 /// Pseudo-inverse of a symmetric positive semi-definite matrix from its Jacobi eigen
 /// decomposition, dropping eigenvalues below 1e-10 of the largest. The result is symmetric.
-fn sym_pinv_impl<const D: usize>(m: &Mat<D>) -> Mat<D> {
+/// Pseudo-inverse of a symmetric matrix keeping the eigen-directions whose eigenvalue exceeds
+/// `relative` times the largest in magnitude (`Dim::sym_pinv`: 1e-10, round-off only).
+pub fn sym_pinv_above<const D: usize>(m: &Mat<D>, relative: f64) -> Mat<D> {
     let (vals, vecs) = sym_eigen(m);
     let top = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     let mut out = Mat::<D>::zeros();
     for (k, &val) in vals.iter().enumerate() {
-        if top > 0.0 && val.abs() > 1e-10 * top {
+        if top > 0.0 && val.abs() > relative * top {
             let e = vecs.column(k);
             out += e * e.transpose() / val;
         }

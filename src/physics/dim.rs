@@ -219,9 +219,8 @@ pub fn sym_eigen<const D: usize>(m: &Mat<D>) -> ([f64; D], Mat<D>) {
 }
 
 /// Pseudo-inverse of a symmetric positive semi-definite matrix from its Jacobi eigen
-/// decomposition, dropping eigenvalues below 1e-10 of the largest. The result is symmetric.
-/// Pseudo-inverse of a symmetric matrix keeping the eigen-directions whose eigenvalue exceeds
-/// `relative` times the largest in magnitude (`Dim::sym_pinv`: 1e-10, round-off only).
+/// decomposition, keeping the eigen-directions whose eigenvalue exceeds `relative` times the
+/// largest in magnitude (`Dim::sym_pinv`: 1e-10, round-off only). The result is symmetric.
 pub fn sym_pinv_above<const D: usize>(m: &Mat<D>, relative: f64) -> Mat<D> {
     let (vals, vecs) = sym_eigen(m);
     let top = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));

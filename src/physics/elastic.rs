@@ -454,9 +454,6 @@ where
     }
 }
 
-/// Shape tensor K_i = sum_j w0/|r0|^2 r0 r0^T over the intact bonds, formed with the same
-/// expression as the deformation-gradient sum, so that F = G K^-1 is the identity to round-off
-/// in the reference state.
 /// Smallest eigenvalue of a shape tensor, relative to its largest, along which a particle's
 /// bonds measure strain; directions below it are outside the neighbourhood's span (the span
 /// projector drops them, as for a single layer of particles).
@@ -478,6 +475,9 @@ pub fn shape_pinv<const D: usize>(k: &Mat<D>) -> Mat<D> {
     super::dim::sym_pinv_above(k, SHAPE_MIN_CONDITION)
 }
 
+/// Shape tensor K_i = sum_j w0/|r0|^2 r0 r0^T over the intact bonds, formed with the same
+/// expression as the deformation-gradient sum, so that F = G K^-1 is the identity to round-off
+/// in the reference state.
 pub fn shape_tensor<const D: usize>(bonds: &Bonds<D>, i: usize) -> Mat<D> {
     let mut k = Mat::<D>::zeros();
     for b in bonds.of(i) {

@@ -3,15 +3,30 @@
 //! the estimate instead of an abort (or the OOM killer) in the middle of the build.
 use super::limits::num;
 use super::{err, Scene, SceneError};
+use crate::physics::ElasticModel;
 
-/// Bytes per particle besides its bonds (2D, 3D) and per stored (directed) bond: the peak of
-/// `Simulation::new` measured with a counting allocator (tests/limits_memory.rs; `CALIBRATE=1`
-/// prints the figures) is exactly linear in the bonds per particle: 440 + 28 nb bytes in 2D,
-/// 825 + 36 nb in 3D (nbr 4 + r0 8 D + w0 8 bytes per bond), at re = 1.5, 2.1 and 3 dp and
-/// 8,000 to 250,000 particles (776 B per particle in 2D and 1977 B in 3D at re = 2.1 dp). The
-/// constants add about 15 % for what grows during a run (contact pair lists) and the allocator.
+/// Bytes per particle besides its bonds (2D, 3D) and per stored (directed) bond of the operators
+/// with first-order fits (corrected, paper): the peak of `Simulation::new` measured with a
+/// counting allocator (tests/limits_memory.rs; `CALIBRATE=1` prints the figures) is exactly
+/// linear in the bonds per particle: 440 + 28 nb bytes in 2D, 825 + 36 nb in 3D (nbr 4, r0 8 D
+/// and w0 8 bytes per bond), at re = 1.5, 2.1 and 3 dp and 8,000 to 250,000 particles (776 B
+/// per particle in 2D and 1977 B in 3D at re = 2.1 dp). The constants add about 15 % for what grows
+/// during a run (contact pair lists) and the allocator.
 const BASE_BYTES: [u64; 2] = [512, 960];
 const BOND_BYTES: [u64; 2] = [32, 40];
+/// The same for `second_order`, which stores per bond its gradient and Hessian weights and
+/// their closure corrections, per particle its fits: measured 1390 / 2020 / 3680-4440 B per
+/// particle in 2D and 4150 / 7000-7550 / 18800-19250 B in 3D at re = 1.5 / 2.1 / 3 dp (large
+/// blocks), fitted as an upper bound by linear programming and raised by 2 %. The cost per
+/// bond is not linear in the bond count in 3D (it falls from 200 to 133 B per bond between re =
+/// 2.1 and 3 dp), so the estimate is tight at the default re = 2.1 dp (within 12 %) and up to
+/// 50 % high at re = 1.5 and 3 dp.
+const SECOND_ORDER_BASE_BYTES: [u64; 2] = [580, 2075];
+const SECOND_ORDER_BOND_BYTES: [u64; 2] = [143, 182];
+/// The summation-by-parts closure of a second_order body (src/physics/sbp.rs) builds the operator
+/// once more on a reduced box of at most 17 layers a side during the build: the estimate
+/// counts min(particles of the body, 17^D) particles twice.
+const CLOSURE_LAYERS: f64 = 17.0;
 /// Fixed cost of a world whatever its size (bytes).
 const FIXED_BYTES: u64 = 1 << 20;
 
@@ -47,8 +62,28 @@ pub fn estimate(scene: &Scene) -> MemoryEstimate {
     let d = if scene.dimension == 3 { 1 } else { 0 };
     let particles = scene.particle_bound();
     let nb = lattice_neighbours(scene.dimension, scene.solver.re_factor);
-    let per = BASE_BYTES[d] + nb * BOND_BYTES[d];
-    let bytes = (particles * per as f64 + FIXED_BYTES as f64).min(u64::MAX as f64) as u64;
+    let (per, counted) = if scene.solver.model == ElasticModel::SecondOrder {
+        let closure: f64 = scene
+            .bodies
+            .iter()
+            .map(|b| {
+                let n: f64 = b
+                    .boxes
+                    .iter()
+                    .filter_map(|r| scene.cell_counts(r, "").ok())
+                    .map(|c| c.iter().map(|&n| n as f64).product::<f64>())
+                    .sum();
+                n.min(CLOSURE_LAYERS.powi(scene.dimension as i32))
+            })
+            .sum();
+        (
+            SECOND_ORDER_BASE_BYTES[d] + nb * SECOND_ORDER_BOND_BYTES[d],
+            particles + closure,
+        )
+    } else {
+        (BASE_BYTES[d] + nb * BOND_BYTES[d], particles)
+    };
+    let bytes = (counted * per as f64 + FIXED_BYTES as f64).min(u64::MAX as f64) as u64;
     MemoryEstimate {
         particles: particles.min(u64::MAX as f64) as u64,
         bonds_per_particle: nb,

@@ -174,7 +174,7 @@ where
         return Err("it has no particles of its own".into());
     }
     if real.iter().any(|&i| so.rigid[i]) {
-        return Err("it has a rigid grip (a clamp without a mirror face)".into());
+        return Err("it has a rigid grip: a clamped or fully prescribed group without a mirror face; a clamp on a plane face takes boundaries[k].mirror".into());
     }
     // The lattice's own frame (its axes from the first particle's bonds of length l0) and
     // positions relative to that particle in it: the closure of a turned or moved body is the
@@ -408,6 +408,7 @@ where
     let nb = vb.len();
     let mut corr: Vec<Vect<D>> = vec![Vect::<D>::zeros(); nb];
     let mut figures = Vec::new();
+    let mut targets = Vec::with_capacity(D);
     for d in 0..D {
         // Target: t = -H dq/dx_d + E_d q - G_d^T H q.
         let mut t = vec![0.0; nv * nq];
@@ -462,8 +463,17 @@ where
                 t[k * nq + 1 + a] = (t[k * nq + 1 + a] - qv[k * nq + 1 + a] * t0) * half[a] / l0;
             }
         }
+        targets.push(t);
+    }
+    // The axes' solves are independent: side by side (each is a few thousand iterations of
+    // small parallel passes, which keep fewer than two cores busy).
+    let solve = |t: &Vec<f64>| sys.solve(t);
+    #[cfg(feature = "parallel")]
+    let solved: Vec<_> = targets.par_iter().map(solve).collect();
+    #[cfg(not(feature = "parallel"))]
+    let solved: Vec<_> = targets.iter().map(solve).collect();
+    for (d, (t, (c, iters, res))) in targets.iter().zip(solved).enumerate() {
         let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let (c, iters, res) = sys.solve(&t);
         // (NaN fails it too.)
         if res.partial_cmp(&(ACCEPT * tnorm)) != Some(std::cmp::Ordering::Less) {
             return Err(format!(

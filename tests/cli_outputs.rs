@@ -63,7 +63,15 @@ fn energy_series_is_written_with_energy() {
     v["output_interval"] = 0.002.into();
     let (ok, stdout, stderr) = run(&d, &v, &["--energy"]);
     assert!(ok, "{stdout}\n{stderr}");
-    assert!(!stderr.contains("warning"), "{stderr}");
+    // The one warning: the default operator's note that the holder (a rigid grip) leaves the
+    // strip's faces without the summation-by-parts closure; nothing is under-resolved.
+    assert!(
+        stderr
+            .lines()
+            .filter(|l| l.contains("warning"))
+            .all(|l| l.contains("summation-by-parts closure")),
+        "{stderr}"
+    );
     assert!(stdout.contains("energies written to"), "{stdout}");
     let (head, rows) = csv(&d.join("o/energy.csv"));
     assert_eq!(
@@ -122,7 +130,18 @@ fn no_energy_file_without_the_flag_and_summary_lists_warnings() {
     assert!(!d.join("o/energy.csv").exists());
     let summary: Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("o/summary.json")).unwrap()).unwrap();
-    assert_eq!(summary["warnings"], json!([]));
+    // small2d is well resolved; its holder is a rigid grip, so the default operator notes that
+    // the strip keeps its plain fits (the note is in the summary, with its field).
+    let w = summary["warnings"].as_array().unwrap();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert_eq!(w[0]["field"], "bodies[0]");
+    assert!(
+        w[0]["message"]
+            .as_str()
+            .unwrap()
+            .contains("it has a rigid grip"),
+        "{w:?}"
+    );
 }
 
 #[test]

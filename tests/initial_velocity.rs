@@ -231,7 +231,14 @@ fn mode_shape_and_table_give_their_velocities_at_the_particles() {
     }));
     let scene = Scene::from_json(&v.to_string()).unwrap();
     let m = Model::<2>::build(&scene).unwrap();
-    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+    // Well resolved; the only note is that the clamp (a grip) leaves the plate its plain fits.
+    assert!(
+        m.warnings
+            .iter()
+            .all(|w| w.message.contains("summation-by-parts closure")),
+        "{:?}",
+        m.warnings
+    );
     let w = &m.world;
     let table = |y: f64| {
         if y <= -0.005 {

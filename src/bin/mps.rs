@@ -62,7 +62,8 @@ enum Cmd {
         /// Particle spacing (m); the paper uses 0.025.
         #[arg(long, default_value_t = 0.025)]
         dp: f64,
-        /// Models to run (default: corrected for both cases, plus the paper's operators for case 2).
+        /// Models to run (default: second_order, the default operator, and corrected for both
+        /// cases, plus the paper's operators for case 2).
         #[arg(long, value_enum)]
         model: Vec<Model>,
         /// Fixed time step (s) instead of the automatic one (the paper uses 1e-5).
@@ -252,7 +253,9 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
         } => {
             let runs: Vec<(u8, ElasticModel)> = if model.is_empty() {
                 vec![
+                    (1, ElasticModel::SecondOrder),
                     (1, ElasticModel::Corrected),
+                    (2, ElasticModel::SecondOrder),
                     (2, ElasticModel::Corrected),
                     (2, ElasticModel::Paper),
                     (2, ElasticModel::PaperLocal),

@@ -253,11 +253,19 @@ where
         let world = World::new(dp, scene.solver.clone(), bodies, groups, loads, gravity)
             .map_err(|e| err("scene", e.to_string()))?;
         for (k, r) in world.closure.iter().enumerate() {
-            if let Err(why) = r {
+            // A body already warned of as under-resolved gets no second warning: its geometry
+            // is the cause, and refining it is the remedy of both.
+            let field = format!("bodies[{k}]");
+            let resolved = !warnings.iter().any(|w: &SceneWarning| {
+                w.field
+                    .strip_prefix(&field)
+                    .is_some_and(|rest| rest.is_empty() || rest.starts_with(' '))
+            });
+            if let (Err(why), true) = (r, resolved) {
                 warnings.push(SceneWarning {
-                    field: format!("bodies[{k}]"),
+                    field,
                     message: format!(
-                        "second_order keeps its plain fits at the free faces of body '{}' ({why}): its summation-by-parts closure needs a body that fills one lattice box (with its mirror images), so there the particle quadrature of the weak form is first order",
+                        "second_order keeps its plain fits at the free faces of body '{}' ({why}): its summation-by-parts closure needs a body that fills one lattice box (with its mirror images), so there the particle quadrature of the weak form is first order (docs/model.md, \"Free faces\")",
                         scene.bodies[k].name
                     ),
                 });

@@ -793,3 +793,26 @@ fn material_law_is_optional_and_selectable() {
         mps_solid::physics::MaterialLaw::SaintVenantKirchhoff
     );
 }
+
+#[test]
+fn a_scene_that_names_no_operator_gets_second_order_with_its_closure() {
+    // The scene format's contract (README, "Bending at coarse resolution"): no solver.model ->
+    // the second-order operator, and a free lattice box gets the summation-by-parts closure
+    // (no warning); naming "corrected" still selects that operator.
+    let s = one_body(
+        serde_json::json!([{"min": [0, 0], "max": [0.2, 0.05]}]),
+        0.01,
+    );
+    assert_eq!(s.solver.model, ElasticModel::SecondOrder);
+    let m = mps_solid::scene::Model::<2>::build(&s).unwrap();
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+    assert!(
+        m.world.closure.iter().all(|r| r.is_ok()),
+        "{:?}",
+        m.world.closure
+    );
+    let mut v: serde_json::Value = serde_json::to_value(&s).unwrap();
+    v["solver"]["model"] = "corrected".into();
+    let c = Scene::from_json(&v.to_string()).unwrap();
+    assert_eq!(c.solver.model, ElasticModel::Corrected);
+}

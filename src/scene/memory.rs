@@ -67,13 +67,9 @@ pub fn estimate(scene: &Scene) -> MemoryEstimate {
             .bodies
             .iter()
             .map(|b| {
-                let n: f64 = b
-                    .boxes
-                    .iter()
-                    .filter_map(|r| scene.cell_counts(r, "").ok())
-                    .map(|c| c.iter().map(|&n| n as f64).product::<f64>())
-                    .sum();
-                n.min(CLOSURE_LAYERS.powi(scene.dimension as i32))
+                scene
+                    .body_particle_bound(b)
+                    .min(CLOSURE_LAYERS.powi(scene.dimension as i32))
             })
             .sum();
         (

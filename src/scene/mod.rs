@@ -483,7 +483,14 @@ impl Scene {
     pub fn particle_bound(&self) -> f64 {
         self.bodies
             .iter()
-            .flat_map(|b| &b.boxes)
+            .map(|b| self.body_particle_bound(b))
+            .sum()
+    }
+
+    /// The particles the boxes of body `b` can hold (an upper bound, as `particle_bound`).
+    pub fn body_particle_bound(&self, b: &Body) -> f64 {
+        b.boxes
+            .iter()
             .filter_map(|r| self.cell_counts(r, "").ok())
             .map(|c| c.iter().map(|&n| n as f64).product::<f64>())
             .sum()

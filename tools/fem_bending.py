@@ -110,9 +110,7 @@ def solve(coords, E, nu, rho, g, nmodes, volumetric="full", check=False, label="
     lam, mu = lame_parameters(E, nu)
     mesh, basis, K, M, f = fr.assemble_tensor(coords, lam, mu, rho, g, check=check,
                                               scaled=True, volumetric=volumetric)
-    comp = np.empty(basis.N, dtype=int)
-    for c, idx in enumerate(basis.split_indices()):
-        comp[idx] = c
+    comp = fr.dof_components(basis)
     free = np.flatnonzero(np.abs(basis.doflocs[0]) > 1e-12)
     Kc = K[free][:, free].tocsc()
     Mc = M[free][:, free].tocsr()
@@ -224,9 +222,7 @@ def check_mixed_element(lam, mu):
     b1 = fr.Basis(fr.tensor_mesh([np.array([0.0, hi]) for hi in h]), fr.vector_element(3))
     ed1 = b1.element_dofs[:, 0]
     X = b1.doflocs[:, ed1]
-    comp = np.empty(b1.N, dtype=int)
-    for c, idx in enumerate(b1.split_indices()):
-        comp[idx] = c
+    comp = fr.dof_components(b1)
     cl = comp[ed1]
     rng = np.random.default_rng(1)
     mons = [np.ones(X.shape[1])] + [X[a] for a in range(3)] + \

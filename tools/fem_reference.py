@@ -250,11 +250,17 @@ def build_coords(ny):
             np.linspace(-B / 2, B / 2, nz + 1)], (nx, ny_, nz)
 
 
-def constrained_dofs(basis, support):
-    xyz = basis.doflocs
+def dof_components(basis):
+    """The displacement component (0, 1, 2) of every DOF of a vector basis."""
     comp = np.empty(basis.N, dtype=int)
     for c, idx in enumerate(basis.split_indices()):
         comp[idx] = c
+    return comp
+
+
+def constrained_dofs(basis, support):
+    xyz = basis.doflocs
+    comp = dof_components(basis)
     tol = 1e-9
     clamp = np.abs(xyz[0]) < tol
     end = np.abs(xyz[0] - L) < tol
@@ -628,6 +634,15 @@ def rounded(obj):
     return obj
 
 
+def write_json(out, data, log=print):
+    """Writes an already rounded reference to `out` (creating its directory), one space indent."""
+    os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+    with open(out, "w") as fh:
+        json.dump(data, fh, indent=1)
+        fh.write("\n")
+    log(f"wrote {out}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true",
@@ -764,11 +779,7 @@ def main(argv=None):
             },
             "beam_theory": bt,
         }
-        os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
-        with open(out, "w") as fh:
-            json.dump(rounded(data), fh, indent=1)
-            fh.write("\n")
-        log(f"wrote {out}")
+        write_json(out, rounded(data), log)
     return 0
 
 

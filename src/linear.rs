@@ -180,7 +180,15 @@ where
 
     /// Static displacement under the body force `g` (m/s^2) on every free particle (m).
     pub fn static_gravity(&mut self, g: Vect<D>, tol: f64) -> Result<Vec<Vect<D>>, SimError> {
-        let rhs: Vec<Vect<D>> = self.world.p.mass.iter().map(|&m| g * m).collect();
+        let mut rhs: Vec<Vect<D>> = self.world.p.mass.iter().map(|&m| g * m).collect();
+        // The followers' weight acts through their constraint.
+        self.world.op.second.spread_to_followed(
+            &self.world.p.mass,
+            g,
+            |_| Vect::<D>::zeros(),
+            &mut rhs,
+        );
+        self.mask(&mut rhs);
         let max_iter = 40 * rhs.len() + 1000;
         Ok(self.solve(&rhs, tol, max_iter)?.0)
     }

@@ -1,6 +1,6 @@
 //! Reports of the paper's cases 1 and 2: each result beside its references (closed form,
-//! Euler-Bernoulli, Timoshenko, the paper's Table 1, the 3D FEM reference in
-//! reference/case2_fem.json), as text tables or JSON.
+//! Euler-Bernoulli, Timoshenko, the paper's Table 1, the 3D FEM references in
+//! reference/case1_fem.json and reference/case2_fem.json), as text tables or JSON.
 use crate::cases::*;
 use crate::physics::ElasticModel;
 use crate::runner::{run_scene, RunResult};
@@ -40,6 +40,36 @@ pub fn fem_reference() -> FemReference {
     }
 }
 
+/// The 3D FEM reference of case 1 (the clamped column), computed by tools/fem_column.py.
+pub const CASE1_FEM_JSON: &str = include_str!("../reference/case1_fem.json");
+
+/// Converged FEM displacements (u_x, u_z) of case 1 on the paper's line x = 0.1 m, y = 0, at
+/// the distances `CASE1_STATIONS` from the support (m).
+pub fn case1_fem_line() -> Vec<(f64, f64)> {
+    let v: serde_json::Value =
+        serde_json::from_str(CASE1_FEM_JSON).expect("reference/case1_fem.json is JSON");
+    let line = &v["converged"]["lines"]["x0.1_y0"];
+    let col = |key: &str| -> Vec<f64> {
+        line[key]["converged"]
+            .as_array()
+            .unwrap_or_else(|| panic!("reference/case1_fem.json lacks {key}.converged"))
+            .iter()
+            .map(|x| x.as_f64().unwrap_or(f64::NAN))
+            .collect()
+    };
+    let s = line["s_m"]
+        .as_array()
+        .expect("reference/case1_fem.json lacks s_m");
+    assert!(
+        s.len() == CASE1_STATIONS.len()
+            && s.iter()
+                .zip(CASE1_STATIONS)
+                .all(|(a, b)| (a.as_f64().unwrap_or(f64::NAN) - b).abs() < 1e-9),
+        "reference/case1_fem.json is not at the case 1 stations"
+    );
+    col("ux").into_iter().zip(col("uz")).collect()
+}
+
 /// One station of case 1.
 #[derive(Clone, Debug, Serialize)]
 pub struct Station {
@@ -47,8 +77,11 @@ pub struct Station {
     pub s: f64,
     pub ux: f64,
     pub ux_closed_form: f64,
+    /// The clamped column's converged 3D FEM value (m).
+    pub ux_fem: f64,
     pub uz: f64,
     pub uz_closed_form: f64,
+    pub uz_fem: f64,
 }
 
 /// Case 1 against its closed form.
@@ -61,6 +94,10 @@ pub struct Case1Report {
     pub error_ux: f64,
     /// The same for the axial displacement (-).
     pub error_uz: f64,
+    /// The same two against the 3D FEM of the clamped column (-): the closed form leaves the
+    /// support free to contract laterally, which a clamp stops (about 1 % near the support).
+    pub error_ux_fem: f64,
+    pub error_uz_fem: f64,
     /// Support reaction along z (N) and the column's weight (N).
     pub reaction_z: f64,
     pub weight: f64,
@@ -118,17 +155,21 @@ pub fn case1(
 ) -> Result<Case1Report, String> {
     let scene = case1_scene(dp, model, dt);
     let r = run_scene(&scene, on_sample)?;
+    let fem = case1_fem_line();
     let stations: Vec<Station> = CASE1_STATIONS
         .iter()
         .zip(&r.final_displacement)
-        .map(|(&s, (_, u))| {
+        .zip(&fem)
+        .map(|((&s, (_, u)), &(ux_fem, uz_fem))| {
             let (ux, uz) = case1_closed_form(CASE1_HALF, 0.0, s);
             Station {
                 s,
                 ux: u[0],
                 ux_closed_form: ux,
+                ux_fem,
                 uz: u[2],
                 uz_closed_form: uz,
+                uz_fem,
             }
         })
         .collect();
@@ -137,6 +178,8 @@ pub fn case1(
         model,
         error_ux: line_error(&stations, |s| s.ux, |s| s.ux_closed_form),
         error_uz: line_error(&stations, |s| s.uz, |s| s.uz_closed_form),
+        error_ux_fem: line_error(&stations, |s| s.ux, |s| s.ux_fem),
+        error_uz_fem: line_error(&stations, |s| s.uz, |s| s.uz_fem),
         stations,
         reaction_z: r.final_reaction[0].1[2],
         weight: CASE1_MATERIAL.density * G * (2.0 * CASE1_HALF).powi(2) * CASE1_LENGTH,
@@ -193,11 +236,11 @@ pub fn case2(
 /// Case 1 as a text table.
 pub fn case1_text(r: &Case1Report) -> String {
     let mut out = format!(
-        "Case 1: column under its own weight, dp = {} m, model {:?}\n  {:>5} {:>12} {:>12} {:>8} {:>12} {:>12} {:>8}\n",
-        r.dp, r.model, "s (m)", "u_x (m)", "closed form", "diff", "u_z (m)", "closed form", "diff"
+        "Case 1: column under its own weight, dp = {} m, model {:?} (diff: against the closed form / the 3D FEM)\n  {:>5} {:>12} {:>12} {:>12} {:>8} {:>8} {:>12} {:>12} {:>12} {:>8} {:>8}\n",
+        r.dp, r.model, "s (m)", "u_x (m)", "closed form", "3D FEM", "diff", "diff", "u_z (m)", "closed form", "3D FEM", "diff", "diff"
     );
     let pct = |num: f64, cf: f64| {
-        if cf.abs() > 1e-15 {
+        if cf.abs() > 1e-12 {
             format!("{:>7.2}%", 100.0 * (num / cf - 1.0))
         } else {
             format!("{:>8}", "-")
@@ -205,20 +248,28 @@ pub fn case1_text(r: &Case1Report) -> String {
     };
     for s in &r.stations {
         out.push_str(&format!(
-            "  {:>5.2} {:>12.4e} {:>12.4e} {} {:>12.4e} {:>12.4e} {}\n",
+            "  {:>5.2} {:>12.4e} {:>12.4e} {:>12.4e} {} {} {:>12.4e} {:>12.4e} {:>12.4e} {} {}\n",
             s.s,
             s.ux,
             s.ux_closed_form,
+            s.ux_fem,
             pct(s.ux, s.ux_closed_form),
+            pct(s.ux, s.ux_fem),
             s.uz,
             s.uz_closed_form,
-            pct(s.uz, s.uz_closed_form)
+            s.uz_fem,
+            pct(s.uz, s.uz_closed_form),
+            pct(s.uz, s.uz_fem)
         ));
     }
     out.push_str(&format!(
-        "  error over s >= 0.2 m (max |diff| / max |closed form|): u_x {:.2}%, u_z {:.2}% (tolerance 3%)\n  support reaction {:.2} N, weight {:.2} N\n  {}\n",
+        "  error over s >= 0.2 m (max |diff| / max |closed form|): u_x {:.2}%, u_z {:.2}% (tolerance 3%)\n  against the clamped column's 3D FEM (reference/case1_fem.json; the closed form is {:.2}% / {:.2}% from it): u_x {:.2}%, u_z {:.2}%\n  support reaction {:.2} N, weight {:.2} N\n  {}\n",
         100.0 * r.error_ux,
         100.0 * r.error_uz,
+        100.0 * line_error(&r.stations, |s| s.ux_closed_form, |s| s.ux_fem),
+        100.0 * line_error(&r.stations, |s| s.uz_closed_form, |s| s.uz_fem),
+        100.0 * r.error_ux_fem,
+        100.0 * r.error_uz_fem,
         r.reaction_z,
         r.weight,
         summary_text(&r.run)

@@ -53,8 +53,9 @@ fn both_variants_are_valid_scene_files() {
 #[test]
 fn second_order_mirrors_the_block_across_its_clamped_faces() {
     // With the second-order operator the clamp's wall layers are the block's mirror images
-    // (docs/model.md, "Mirror faces"): every wall particle must be the ghost of a block particle,
-    // 3 layers of 20 x 5 per clamped face at dp = 0.05 (one face standing, two as a bridge).
+    // (docs/model.md, "Clamped faces"): 3 layers of 20 x 5 per clamped face at dp = 0.05 (one
+    // face standing, two as a bridge), and the block's first layer at each (20 x 5) follows the
+    // clamp's constraint (held as well).
     // The other operators keep the walls as a rigid grip (no mirror in the scene).
     use mps_solid::case3::{case3_scene_with, Hold};
     use mps_solid::scene::Model;
@@ -65,8 +66,11 @@ fn second_order_mirrors_the_block_across_its_clamped_faces() {
         let held = (0..m.world.len())
             .filter(|&i| m.world.p.fix[i] != 0)
             .count();
-        assert_eq!(held, 300 * faces, "{hold:?}");
-        assert_eq!(m.world.op.second.ghosts.len(), held, "{hold:?}");
+        assert_eq!(held, 400 * faces, "{hold:?}");
+        assert!(m.world.op.second.ghosts.is_empty(), "{hold:?}");
+        assert_eq!(m.world.op.second.followers.len(), 100 * faces, "{hold:?}");
+        let walls = m.world.op.second.walls.iter().filter(|&&w| w).count();
+        assert_eq!(walls, 300 * faces, "{hold:?}");
         let corrected = case3_scene_with(0.05, true, ElasticModel::Corrected, hold, EPS_MAX_USED);
         assert!(corrected.boundaries.iter().all(|b| b.mirror.is_none()));
     }

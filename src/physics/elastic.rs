@@ -79,6 +79,8 @@ where
         n_particles: usize,
         rigid: &[bool],
         ghosts: &[super::second_order::Ghost<D>],
+        followers: &[super::second_order::Follower],
+        walls: &[bool],
     ) -> Self {
         let mut op = ElasticOperator {
             model,
@@ -95,7 +97,16 @@ where
             second: SecondOrder::default(),
         };
         if model == ElasticModel::SecondOrder {
-            op.second = SecondOrder::new(bonds, l0, re_factor, n_particles, rigid, ghosts);
+            op.second = SecondOrder::new(
+                bonds,
+                l0,
+                re_factor,
+                n_particles,
+                rigid,
+                ghosts,
+                followers,
+                walls,
+            );
         } else {
             (op.k_inv, op.span) = (0..n_particles)
                 .map(|i| op.shape_inverse_span(bonds, i))

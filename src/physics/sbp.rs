@@ -16,7 +16,10 @@
 //! (weights 1 + 1/12, 1 - 1/8, 1 + 1/24 on the first three layers; by symmetry exact for cubics).
 //! Mirror faces are interior to the body's mirrored extension, which is the box the closure is
 //! built on, in the lattice's own frame (a turned body gets the same closure, volumes and stable
-//! step). Bodies that are not a filled lattice box (after mirroring) keep the plain fits.
+//! step). A clamped face is a face of that box whose extrapolation R is the followers'
+//! constraint along its normal (`second_order::Follower`), so that its face term vanishes for
+//! every motion the clamp admits. Bodies that are not a filled lattice box (after mirroring)
+//! keep the plain fits.
 //!
 //! The least-norm corrections solve (A P A^T) y = t (A: the column sums, P: the projection on
 //! each row's quadratic null space), a sixth-order-like operator whose condition grows as the
@@ -31,7 +34,7 @@ use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
 #[allow(unused_imports)]
 use super::par::*;
-use super::second_order::{Ghost, SecondOrder};
+use super::second_order::{Ghost, SecondOrder, FACE_EXTRAPOLATION};
 use crate::par_iter_mut;
 
 /// End corrections of the cell-centred midpoint rule on the first three layers from a face:
@@ -168,7 +171,9 @@ where
     let real: Vec<usize> = members
         .iter()
         .copied()
-        .filter(|i| !ghost_of.contains_key(&(*i as u32)))
+        .filter(|i| {
+            !ghost_of.contains_key(&(*i as u32)) && !so.walls.get(*i).copied().unwrap_or(false)
+        })
         .collect();
     if real.is_empty() {
         return Err("it has no particles of its own".into());
@@ -322,7 +327,7 @@ where
         .collect();
     // The virtual body's own fits (its particles see full stencils at the mirror planes).
     let vb = Bonds::build(&vx, &vec![0; nv], re_factor * l0);
-    let mut vso = SecondOrder::<D>::new(&vb, l0, re_factor, nv, &vec![false; nv], &[]);
+    let mut vso = SecondOrder::<D>::new(&vb, l0, re_factor, nv, &vec![false; nv], &[], &[], &[]);
     if vso.quadratic.iter().any(|q| !q) {
         return Err("a particle's neighbourhood has no quadratic fit".into());
     }
@@ -404,6 +409,27 @@ where
             }
         }
     }
+    // Face points on clamped faces (particle of the reduced box, axis, side): their
+    // extrapolation is the followers' constraint along the normal (FACE_EXTRAPOLATION on the
+    // first three layers), so that the face term vanishes for every motion the clamp allows.
+    let small_index: HashMap<[usize; D], usize> =
+        sidx.iter().enumerate().map(|(i, k)| (*k, i)).collect();
+    let mut clamped: std::collections::HashSet<(usize, usize, i8)> = Default::default();
+    {
+        let vi_of: HashMap<usize, usize> = real.iter().enumerate().map(|(v, &i)| (i, v)).collect();
+        for fl in &so.followers {
+            let Some(&vi) = vi_of.get(&(fl.particle as usize)) else {
+                continue;
+            };
+            let out = loc(fl.particle as usize) - loc(fl.inner[0] as usize);
+            let a = out.iamax();
+            let k = full_idx[vi];
+            let Some(&si) = small_index.get(&std::array::from_fn(|c| small_of(c, k[c]))) else {
+                return Err("a follower has no layer class (internal)".into());
+            };
+            clamped.insert((si, a, out[a].signum() as i8));
+        }
+    }
     let sys = NullSpaceConstraints::new(&vb, &row_gram, l0, D + 1, tie);
     let nb = vb.len();
     let mut corr: Vec<Vect<D>> = vec![Vect::<D>::zeros(); nb];
@@ -441,6 +467,23 @@ where
                         .filter(|&a| a != d)
                         .map(|a| w1[a][k[a]])
                         .product::<f64>();
+                if clamped.contains(&(i, d, side as i8)) {
+                    let mut k1 = sidx[i];
+                    for (step, r) in FACE_EXTRAPOLATION.iter().enumerate() {
+                        k1[d] = if side < 0.0 {
+                            sidx[i][d] + step
+                        } else {
+                            sidx[i][d] - step
+                        };
+                        let &j = small_index
+                            .get(&k1)
+                            .ok_or("a clamped face's column is short (internal)")?;
+                        for q in 0..nq {
+                            t[j * nq + q] += r * side * area * q_at(&y, q);
+                        }
+                    }
+                    continue;
+                }
                 let mut rsum = 0.0;
                 for bnd in vb.of(i) {
                     let j = vb.nbr[bnd] as usize;
@@ -503,8 +546,6 @@ where
         |r: &Vect<D>| -> Vec<i64> { r.iter().map(|c| (c / l0 * 4.0).round() as i64).collect() };
     let mut lost = 0.0f64;
     let mut updates = Vec::new();
-    let small_index: HashMap<[usize; D], usize> =
-        sidx.iter().enumerate().map(|(i, k)| (*k, i)).collect();
     for (vi, &i) in real.iter().enumerate() {
         let world: HashMap<Vec<i64>, usize> = bonds
             .of(i)

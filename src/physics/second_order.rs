@@ -79,6 +79,15 @@ pub struct SecondOrder<const D: usize> {
     pub re_factor: f64,
     /// Ghosts of mirror faces, sorted by ghost index (`world::MirrorFace`).
     pub ghosts: Vec<Ghost<D>>,
+    /// Followers of clamped mirror faces (all axes held): the first layer of the body at the
+    /// face, whose displacement is the one for which the quadratic extrapolation along the
+    /// face's normal to the face equals the clamp's motion.
+    pub followers: Vec<Follower>,
+    /// Members of clamped mirror faces: they enter no fit (the clamp is the followers'
+    /// constraint, the face a free face of the closure).
+    pub walls: Vec<bool>,
+    /// Whether particle i is a follower.
+    pub following: Vec<bool>,
     /// Summation-by-parts closure (module `sbp`): the correction of each bond's gradient
     /// weight (1/m; empty without a closure).
     pub closure_dg: Vec<Vect<D>>,
@@ -110,6 +119,49 @@ impl<const D: usize> Ghost<D> {
                 master[k]
             }
         })
+    }
+}
+
+/// Extrapolation to a face of the quadratic through the layers at l0/2, 3 l0/2, 5 l0/2 from it
+/// (Lagrange weights at 0): the clamped face's term in the closure (module `sbp`).
+pub const FACE_EXTRAPOLATION: [f64; 3] = [15.0 / 8.0, -5.0 / 4.0, 3.0 / 8.0];
+
+/// Weights of a follower's displacement on (its clamp's motion, the second layer, the third
+/// layer) along the face's normal: the values for which FACE_EXTRAPOLATION gives the clamp's
+/// motion on the face (8/15, 2/3, -1/5).
+pub const FOLLOW: [f64; 3] = [
+    1.0 / FACE_EXTRAPOLATION[0],
+    -FACE_EXTRAPOLATION[1] / FACE_EXTRAPOLATION[0],
+    -FACE_EXTRAPOLATION[2] / FACE_EXTRAPOLATION[0],
+];
+
+/// Shares of a follower's mass that the second and third layer carry: the diagonal of the
+/// constraint's mass matrix S^T M S (FOLLOW[1]^2, FOLLOW[2]^2), so that the followed layers'
+/// stiffness, which the constraint raises by about those shares, has the inertia that goes with
+/// it and the stable step does not shrink.
+pub const LUMP: [f64; 2] = [FOLLOW[1] * FOLLOW[1], FOLLOW[2] * FOLLOW[2]];
+
+/// A particle of the first layer at a clamped face: it follows the two layers behind it and the
+/// clamp (its wall particle at the mirror image carries the clamp's motion and the reaction).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Follower {
+    pub particle: u32,
+    /// The clamp's member at the particle's mirror image (its motion, its share of the reaction).
+    pub wall: u32,
+    /// The particles l0 and 2 l0 further in along the face's normal.
+    pub inner: [u32; 2],
+}
+
+impl Follower {
+    /// The follower's value of a field f (displacement or velocity).
+    #[inline(always)]
+    pub fn follow<T>(&self, f: impl Fn(usize) -> T) -> T
+    where
+        T: std::ops::Mul<f64, Output = T> + std::ops::Add<Output = T>,
+    {
+        f(self.wall as usize) * FOLLOW[0]
+            + f(self.inner[0] as usize) * FOLLOW[1]
+            + f(self.inner[1] as usize) * FOLLOW[2]
     }
 }
 
@@ -151,7 +203,9 @@ where
     Space: Dim<D>,
 {
     /// Weights of all particles from their current (intact) bonds; `rigid` marks the particles
-    /// of clamped groups.
+    /// of clamped groups, `ghosts` the mirror faces' members, `followers` and `walls` the
+    /// clamped mirror faces' first layers and members.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         bonds: &Bonds<D>,
         l0: f64,
@@ -159,6 +213,8 @@ where
         n: usize,
         rigid: &[bool],
         ghosts: &[Ghost<D>],
+        followers: &[Follower],
+        walls: &[bool],
     ) -> Self {
         let mut s = SecondOrder {
             g: vec![Vect::<D>::zeros(); bonds.len()],
@@ -171,6 +227,19 @@ where
             behind: vec![false; n],
             re_factor,
             ghosts: ghosts.to_vec(),
+            followers: followers.to_vec(),
+            following: {
+                let mut f = vec![false; n];
+                for fl in followers {
+                    f[fl.particle as usize] = true;
+                }
+                f
+            },
+            walls: if walls.is_empty() {
+                vec![false; n]
+            } else {
+                walls.to_vec()
+            },
             closure_dg: Vec::new(),
             closable: Vec::new(),
             closed: Vec::new(),
@@ -190,9 +259,34 @@ where
             s.behind[g.ghost as usize] = false;
         }
         for i in 0..n {
+            s.behind[i] |= s.walls[i];
+        }
+        for i in 0..n {
             s.refresh(bonds, l0, i);
         }
         s
+    }
+
+    /// Adds the followers' external forces to what they follow, by the chain rule of their
+    /// constraint: their weight `mass[i] g` and `ext(i)` (loads, contact). The clamp's wall
+    /// particle gets its share as part of the reaction. The followed layers carry the
+    /// followers' lumped inertia (`LUMP`), whose weight the integrator applies with theirs: it
+    /// is taken off here, so that the weight acts as the constraint distributes it.
+    pub fn spread_to_followed(
+        &self,
+        mass: &[f64],
+        g: Vect<D>,
+        ext: impl Fn(usize) -> Vect<D>,
+        force: &mut [Vect<D>],
+    ) {
+        for fl in &self.followers {
+            let i = fl.particle as usize;
+            let w = g * mass[i];
+            let e = w + ext(i);
+            force[fl.wall as usize] += e * FOLLOW[0];
+            force[fl.inner[0] as usize] += e * FOLLOW[1] - w * LUMP[0];
+            force[fl.inner[1] as usize] += e * FOLLOW[2] - w * LUMP[1];
+        }
     }
 
     /// The ghost record of particle i, if it is one.
@@ -485,19 +579,19 @@ where
         s.grad.resize(n, Mat::<D>::zeros());
         s.hess.resize(n, [Mat::<D>::zeros(); D]);
         let cell = l0 * l0 / 12.0;
-        if !self.ghosts.is_empty() {
+        let derived = !self.ghosts.is_empty() || !self.followers.is_empty();
+        if derived {
             s.ueff.clear();
             s.ueff.extend_from_slice(&p.u);
             for g in &self.ghosts {
                 let (gi, mi) = (g.ghost as usize, g.master as usize);
                 s.ueff[gi] = g.reflect(&p.u[gi], &p.u[mi]);
             }
+            for fl in &self.followers {
+                s.ueff[fl.particle as usize] = fl.follow(|j| p.u[j]);
+            }
         }
-        let uu: &[Vect<D>] = if self.ghosts.is_empty() {
-            &p.u
-        } else {
-            &s.ueff
-        };
+        let uu: &[Vect<D>] = if derived { &s.ueff } else { &p.u };
         // Per-particle slices of the per-bond output (safe disjoint borrows for the gather).
         s.dbond.resize(bonds.len(), Vect::<D>::zeros());
         let mut slices: Vec<&mut [Vect<D>]> = Vec::with_capacity(n);
@@ -631,6 +725,15 @@ where
             force[gi] =
                 Vect::<D>::from_fn(|k, _| if g.parity[k] < 0.0 { 2.0 * fg[k] } else { 0.0 });
         }
+        // Chain rule through the followers' constraint: their forces go to the layers they
+        // follow and to the clamp (its reaction).
+        for fl in &self.followers {
+            let fi = force[fl.particle as usize];
+            force[fl.wall as usize] += fi * FOLLOW[0];
+            force[fl.inner[0] as usize] += fi * FOLLOW[1];
+            force[fl.inner[1] as usize] += fi * FOLLOW[2];
+            force[fl.particle as usize] = Vect::<D>::zeros();
+        }
     }
 
     /// Strain energy of the current state (J), the same energy whose gradient `forces` is.
@@ -651,7 +754,7 @@ where
             mu * e.component_mul(e).sum() + 0.5 * lambda * e.trace().powi(2)
         };
         let mut total = 0.0;
-        let uu: &[Vect<D>] = if self.ghosts.is_empty() {
+        let uu: &[Vect<D>] = if self.ghosts.is_empty() && self.followers.is_empty() {
             &p.u
         } else {
             &s.ueff
@@ -694,5 +797,31 @@ where
             }
         }
         total
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{FACE_EXTRAPOLATION, FOLLOW};
+
+    /// The face extrapolation is exact for quadratics through the layers at 1/2, 3/2, 5/2 (in
+    /// l0) and the follower's weights invert it: both to round-off (1e-15).
+    #[test]
+    fn face_extrapolation_is_exact_for_quadratics_and_followers_invert_it() {
+        let x = [0.5, 1.5, 2.5];
+        for p in 0..3 {
+            let at_face: f64 = FACE_EXTRAPOLATION
+                .iter()
+                .zip(x)
+                .map(|(w, xi)| w * f64::powi(xi, p))
+                .sum();
+            let exact = if p == 0 { 1.0 } else { 0.0 };
+            assert!((at_face - exact).abs() < 1e-15, "x^{p}: {at_face}");
+        }
+        // u_face = E0 u1 + E1 u2 + E2 u3 with u1 = F0 u_face + F1 u2 + F2 u3, for all u.
+        let e = FACE_EXTRAPOLATION;
+        assert!((e[0] * FOLLOW[0] - 1.0).abs() < 1e-15);
+        assert!((e[0] * FOLLOW[1] + e[1]).abs() < 1e-15);
+        assert!((e[0] * FOLLOW[2] + e[2]).abs() < 1e-15);
     }
 }

@@ -460,6 +460,7 @@ where
         let all_axes: u8 = FIX_AXIS.iter().take(D).fold(0, |a, b| a | b);
         let names: Vec<String> = gs.iter().map(|g| g.name.clone()).collect();
         let ghosts = find_ghosts(&p, l0, &group_of, &mirrors, &names, options.model)?;
+        let (ghosts, followers, walls) = clamp_followers(&p, l0, &group_of, &mirrors, ghosts);
         for g in &ghosts {
             // A ghost follows its master: it is moved by nothing else.
             p.fix[g.ghost as usize] |= all_axes;
@@ -467,6 +468,10 @@ where
         // Particles of clamped groups (all axes held) and ghosts: the second-order operator
         // treats them as a rigid grip.
         let rigid: Vec<bool> = p.fix.iter().map(|f| f & all_axes == all_axes).collect();
+        for fl in &followers {
+            // A follower is moved by its constraint only (it keeps its energy).
+            p.fix[fl.particle as usize] |= all_axes;
+        }
         let op = ElasticOperator::new(
             options.model,
             l0,
@@ -478,6 +483,8 @@ where
             n,
             &rigid,
             &ghosts,
+            &followers,
+            &walls,
         );
         let mut op = op;
         // The second-order operator's summation-by-parts closure at free faces (module `sbp`):
@@ -503,6 +510,13 @@ where
                 }
             }
             op.second.set_closure(&bonds, l0, cl.dg, closable);
+            // The followers' inertia, lumped on the layers they follow.
+            for fl in &op.second.followers {
+                let m = p.mass[fl.particle as usize];
+                for (j, share) in fl.inner.iter().zip(super::second_order::LUMP) {
+                    p.mass[*j as usize] += share * m;
+                }
+            }
             closure = cl.report;
         }
         let mut load_of = vec![u32::MAX; n];
@@ -677,6 +691,40 @@ where
                 .contact
                 .add_forces(&self.p.x0, &self.p.u, &self.p.body, &mut self.force);
         }
+        // The followers of clamped faces carry no inertia of their own; their weight, loads
+        // and contact forces act through the constraint (on the layers they follow and the
+        // clamp). Their elastic forces took that path in the operator.
+        if !self.op.second.followers.is_empty() {
+            let g = self.gravity.at(self.time);
+            let (p, loads, load_of) = (&self.p, &self.loads, &self.load_of);
+            let time = self.time;
+            let ext: Vec<Vect<D>> = self
+                .op
+                .second
+                .followers
+                .iter()
+                .map(|fl| {
+                    let i = fl.particle as usize;
+                    let mut e = self.force[i];
+                    let l = load_of[i];
+                    if l != u32::MAX {
+                        let r = &loads[l as usize];
+                        e += r.force_at(time) / (r.members.len().max(1) as f64);
+                    }
+                    e
+                })
+                .collect();
+            let so = &self.op.second;
+            so.spread_to_followed(
+                &p.mass,
+                g,
+                |i| ext[so.followers.partition_point(|f| (f.particle as usize) < i)],
+                &mut self.force,
+            );
+            for fl in &so.followers {
+                self.force[fl.particle as usize] = Vect::<D>::zeros();
+            }
+        }
         for g in &mut self.groups {
             let mut sum = Vect::<D>::zeros();
             for &i in &g.members {
@@ -785,6 +833,17 @@ where
             .bonds_broken(&self.bonds, &self.p.body, &touched);
     }
 
+    /// Moves the followers of clamped faces to their constraint (displacement and velocity).
+    fn sync_followers(&mut self) {
+        let p = &mut self.p;
+        for fl in &self.op.second.followers {
+            let i = fl.particle as usize;
+            p.u[i] = fl.follow(|j| p.u[j]);
+            p.v[i] = fl.follow(|j| p.v[j]);
+            p.x[i] = p.x0[i] + p.u[i];
+        }
+    }
+
     /// One step of length dt (s).
     pub fn step(&mut self, dt: f64) -> Result<(), SimError> {
         self.step_to(dt, self.time + dt)
@@ -824,6 +883,7 @@ where
             &inputs,
             &mut self.bad,
         );
+        self.sync_followers();
         self.time = t_new;
         self.steps += 1;
         if let Some(i) = bad {
@@ -911,7 +971,10 @@ where
 
     /// Kinetic energy of translation and rotation (J).
     pub fn kinetic_energy(&self) -> f64 {
+        // (A follower's motion is its constraint's: it carries no kinetic energy of its own.)
+        let following = &self.op.second.following;
         (0..self.len())
+            .filter(|&i| !following.get(i).copied().unwrap_or(false))
             .map(|i| {
                 0.5 * self.p.mass[i] * self.p.v[i].norm_squared()
                     + 0.5 * self.p.inertia[i] * <Space as Dim<D>>::ang_dot(self.p.w[i], self.p.w[i])
@@ -1153,6 +1216,8 @@ where
         self.p.u.clone_from(&s.u);
         self.p.sync_positions();
         self.p.v.clone_from(&s.v);
+        // Followers are derived from what they follow (a state from elsewhere may not hold them).
+        self.sync_followers();
         self.p.q.clone_from(&s.q);
         self.p.w.clone_from(&s.w);
         let changed: Vec<usize> = (0..n)
@@ -1446,6 +1511,86 @@ where
         self.step_refresh_seconds += clock.elapsed().as_secs_f64();
         deformed
     }
+}
+
+/// Splits the ghosts of clamped mirror faces (all axes held) off: the first layer of the body
+/// at such a face follows the two layers behind it (`second_order::Follower`), and the face's
+/// members become walls that enter no fit. Returns (the other ghosts, the followers, the walls).
+#[allow(clippy::type_complexity)]
+fn clamp_followers<const D: usize>(
+    p: &Particles<D>,
+    l0: f64,
+    group_of: &[u32],
+    mirrors: &[(usize, MirrorFace, [bool; 3])],
+    ghosts: Vec<Ghost<D>>,
+) -> (Vec<Ghost<D>>, Vec<super::second_order::Follower>, Vec<bool>)
+where
+    Space: Dim<D>,
+{
+    let n = p.len();
+    let clamp_groups: Vec<u32> = mirrors
+        .iter()
+        .filter(|(_, _, axes)| axes.iter().take(D).all(|&a| a))
+        .map(|(g, _, _)| *g as u32)
+        .collect();
+    if clamp_groups.is_empty() {
+        return (ghosts, Vec::new(), Vec::new());
+    }
+    let key =
+        |x: &Vect<D>| -> Vec<i64> { x.iter().map(|c| (c / l0 * 4.0).round() as i64).collect() };
+    let at: std::collections::HashMap<Vec<i64>, usize> =
+        (0..n).map(|i| (key(&p.x0[i]), i)).collect();
+    let walls: Vec<bool> = group_of
+        .iter()
+        .map(|g| *g != u32::MAX && clamp_groups.contains(g))
+        .collect();
+    let all = ghosts.clone();
+    let mut rest = Vec::new();
+    let mut followers = Vec::new();
+    for g in ghosts {
+        let (gi, mi) = (g.ghost as usize, g.master as usize);
+        if !walls[gi] {
+            rest.push(g);
+            continue;
+        }
+        let d = p.x0[mi] - p.x0[gi];
+        if (d.norm() - l0).abs() > 1e-6 * l0 {
+            continue;
+        }
+        let find = |k: f64| -> Option<u32> {
+            let x = p.x0[mi] + d * k;
+            at.get(&key(&x))
+                .copied()
+                .filter(|&j| {
+                    group_of[j] == u32::MAX
+                        && p.body[j] == p.body[mi]
+                        && (p.x0[j] - x).norm() < 1e-6 * l0
+                })
+                .map(|j| j as u32)
+        };
+        // A body thinner than 3 layers there keeps the odd mirror at its clamps.
+        let (Some(a), Some(b)) = (find(1.0), find(2.0)) else {
+            return (all, Vec::new(), Vec::new());
+        };
+        followers.push(super::second_order::Follower {
+            particle: mi as u32,
+            wall: gi as u32,
+            inner: [a, b],
+        });
+    }
+    followers.sort_by_key(|f| f.particle);
+    // A particle at two clamped faces (an edge between them), or a follower that another one
+    // follows (a body thinner than 4 layers between two clamped faces): the constraints would
+    // chain. Such a scene keeps the odd mirror at its clamps (docs/model.md, "Clamped faces").
+    let following: std::collections::HashSet<u32> = followers.iter().map(|f| f.particle).collect();
+    if followers.windows(2).any(|w| w[0].particle == w[1].particle)
+        || followers
+            .iter()
+            .any(|f| f.inner.iter().any(|j| following.contains(j)))
+    {
+        return (all, Vec::new(), Vec::new());
+    }
+    (rest, followers, walls)
 }
 
 /// The ghosts of the mirror faces: each member of a mirroring group at the mirror image (within

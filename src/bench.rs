@@ -345,7 +345,7 @@ pub fn bending_markdown(rows: &[BendRow], threads: usize) -> String {
     for r in rows {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {:.3e} | {:.3} | {:.3} | {:+.2}% | {:+.2}% |",
+            "| {} | {} | {} | {} | {:.3e} | {:.3} | {:.3} | {:+.3}% | {:+.3}% |",
             r.case,
             r.model,
             r.across,
@@ -430,7 +430,12 @@ pub fn write_front_png(rows: &[BendRow], path: &std::path::Path) -> Result<(), S
         .y_labels(6)
         .x_desc("wall time per simulated period (s)")
         .y_desc("max(|f1 error|, |tip error|)")
-        .y_label_formatter(&|v| format!("{:.1}%", 100.0 * v))
+        // Percent with as many decimals as the decade needs (0.001 % has three).
+        .y_label_formatter(&|v| {
+            let pct = 100.0 * v;
+            let decimals = (-pct.log10().floor()).clamp(0.0, 6.0) as usize;
+            format!("{pct:.decimals$}%")
+        })
         .draw()
         .map_err(|e| e.to_string())?;
     let colours = [

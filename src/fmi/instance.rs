@@ -1451,7 +1451,12 @@ mod tests {
 
     /// An initialised instance of tests/data/small2d.json, stepped 3 times.
     fn small2d() -> Instance {
-        let dir = std::env::temp_dir().join(format!("mps-instance-unit-{}", std::process::id()));
+        // One directory per call: the tests run in parallel threads, and a shared scene file
+        // could be read while another test truncates it.
+        static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let dir =
+            std::env::temp_dir().join(format!("mps-instance-unit-{}-{call}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let scene =
             Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/small2d.json"))

@@ -2,7 +2,8 @@
 //! The small2d cantilever of tests/energy_fracture.rs (no gravity, fracture_strain 0.01,
 //! fractured-surface contact) thrown at its holder, run for 5 ms at `factor` x the automatic
 //! step; prints the energy (kinetic + strain + contact) change summed over the steps in which
-//! bonds broke and over the others, and the largest rise, per model and velocity.
+//! bonds broke and over the others, the largest rise, the energy the breaks released and the
+//! particles whose re-fit at a break was limited, per model and velocity.
 //! `cargo run --release --example fracture_energy_dt -- [factor...]` (default 1 0.5 0.25).
 use mps_solid::physics::World;
 use mps_solid::scene::{Model, Scene};
@@ -38,7 +39,7 @@ fn main() {
     } else {
         factors
     };
-    for model in ["corrected", "second_order"] {
+    for model in ["second_order", "corrected"] {
         for vel in [[0.0, -5.0], [5.0, 0.0], [-5.0, 0.0]] {
             for &f in &factors {
                 let mut w = match small2d(vel, model) {
@@ -70,10 +71,16 @@ fn main() {
                     prev = e;
                     prev_broken = w.broken_pairs;
                 }
+                let limited: Vec<f64> =
+                    w.op.retained.iter().copied().filter(|&r| r < 1.0).collect();
+                let least = limited.iter().copied().fold(1.0, f64::min);
                 println!(
-                    "{model} v {vel:?} dt {f} x auto: E0 {e0:.2} J, largest {:+.2} %, change in steps with breaks {on_break:+.2} J, in the others {other:+.2} J, {} broken pairs{}",
+                    "{model} v {vel:?} dt {f} x auto: E0 {e0:.2} J, largest {:+.2} %, change in steps with breaks {on_break:+.2} J, in the others {other:+.2} J, {} broken pairs, released {:.2} J, {} of {} particles limited (least share {least:.3}){}",
                     100.0 * (emax / e0 - 1.0),
                     w.broken_pairs,
+                    w.fracture_release,
+                    limited.len(),
+                    w.len(),
                     outcome.map(|e| format!(", stopped at {:.5} s: {e}", w.time)).unwrap_or_default()
                 );
             }

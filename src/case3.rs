@@ -222,6 +222,8 @@ pub struct Case3Sample {
     pub kinetic: f64,
     pub strain: f64,
     pub contact: f64,
+    /// Strain energy released by broken bonds so far (J).
+    pub fracture: f64,
     /// Total momentum y (kg m/s) (not conserved: the clamped ends react).
     pub momentum_y: f64,
     /// Largest strain over the intact bonds (-).
@@ -341,6 +343,7 @@ pub fn case3_report_with(
         kinetic: sim.kinetic_energy(),
         strain: sim.strain_energy(),
         contact: sim.contact_energy(),
+        fracture: sim.fracture_energy(),
         momentum_y: sim.momentum()[1],
         max_bond_strain: sim.max_bond_strain(),
     };

@@ -31,6 +31,8 @@ pub struct Energies {
     pub strain: f64,
     /// Contact potential energy of the current positions (0 without contact).
     pub contact: f64,
+    /// Strain energy released by broken bonds so far (0 without fracture).
+    pub fracture: f64,
 }
 
 impl Energies {
@@ -40,10 +42,12 @@ impl Energies {
             kinetic: sim.kinetic_energy(),
             strain: sim.strain_energy(),
             contact: sim.contact_energy(),
+            fracture: sim.fracture_energy(),
         }
     }
-    /// kinetic + strain + contact (J): conserved by an undamped run without loads, gravity or
-    /// fracture (a broken bond releases its strain energy).
+    /// kinetic + strain + contact (J): conserved by an undamped run without loads and gravity
+    /// and without fracture; with fracture, total + fracture is (a break releases energy and
+    /// never creates it).
     pub fn total(&self) -> f64 {
         self.kinetic + self.strain + self.contact
     }
@@ -165,6 +169,7 @@ pub fn check_finite(r: &RunResult) -> Result<(), String> {
             ("kinetic", e.kinetic),
             ("strain", e.strain),
             ("contact", e.contact),
+            ("fracture", e.fracture),
         ] {
             if !v.is_finite() {
                 return Err(format!(
@@ -327,17 +332,22 @@ pub fn series_csv(s: &Series, dimension: usize) -> String {
     out
 }
 
-/// The energy series as CSV: `time,kinetic_energy,strain_energy,contact_energy,total_energy`
-/// (s, J; J/m in 2D), one row per output sample.
+/// The energy series as CSV:
+/// `time,kinetic_energy,strain_energy,contact_energy,total_energy,fracture_energy` (s, J; J/m in
+/// 2D), one row per output sample; fracture_energy is the strain energy released by breaks so
+/// far.
 pub fn energy_csv(s: &Series) -> String {
-    let mut out = String::from("time,kinetic_energy,strain_energy,contact_energy,total_energy\n");
+    let mut out = String::from(
+        "time,kinetic_energy,strain_energy,contact_energy,total_energy,fracture_energy\n",
+    );
     for (t, e) in s.time.iter().zip(&s.energy) {
         out.push_str(&format!(
-            "{t:.9e},{:.9e},{:.9e},{:.9e},{:.9e}\n",
+            "{t:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e}\n",
             e.kinetic,
             e.strain,
             e.contact,
-            e.total()
+            e.total(),
+            e.fracture
         ));
     }
     out

@@ -230,6 +230,11 @@ impl Simulation {
     }
     /// Broken bond pairs counted during the run (equals `broken_bonds` for bonds broken by
     /// fracture; kept as a counter, O(1)).
+    /// Strain energy released by broken bonds so far (J; per metre of depth in 2D).
+    pub fn fracture_energy(&self) -> f64 {
+        with!(self, m => m.world.fracture_release)
+    }
+
     pub fn broken_pairs(&self) -> u64 {
         with!(self, m => m.world.broken_pairs)
     }

@@ -81,7 +81,8 @@ fn energy_series_is_written_with_energy() {
             "kinetic_energy",
             "strain_energy",
             "contact_energy",
-            "total_energy"
+            "total_energy",
+            "fracture_energy"
         ]
     );
     let (_, probes) = csv(&d.join("o/probes.csv"));
@@ -91,6 +92,7 @@ fn energy_series_is_written_with_energy() {
         assert_eq!(r[0], p[0], "same sample times");
         assert!((r[4] - (r[1] + r[2] + r[3])).abs() <= 1e-9 * r[4], "{r:?}");
         assert_eq!(r[3], 0.0, "one body, no fracture: no contact");
+        assert_eq!(r[5], 0.0, "no fracture: nothing released");
     }
     // The start: all kinetic, the kinetic energy of the mode's velocities.
     let scene = mps_solid::Scene::from_json(&v.to_string()).unwrap();

@@ -221,9 +221,10 @@ pub struct FmuState {
 /// Magic and version of serialised FMU states. Version 3: a body's initial velocity is a
 /// tagged enum (uniform or field) in the state's scene. Version 4: a body's material carries
 /// its strain energy law (`material.law`) and a boundary its mirror face (`mirror`, null when
-/// absent) in the state's scene.
+/// absent) in the state's scene. Version 5: the world's state carries the retained energy
+/// shares of particles whose re-fit at a break was limited and the energy released by breaks.
 const STATE_MAGIC: &[u8; 8] = b"MPSFMUST";
-const STATE_VERSION: u32 = 4;
+const STATE_VERSION: u32 = 5;
 /// Largest serialised state accepted (bytes): bounds the allocations of a decoded state.
 const MAX_STATE_BYTES: u64 = 1 << 34;
 
@@ -688,6 +689,7 @@ impl Instance {
                     Quantity::Reaction(g, k) => Some(sim.group_reaction(g)[k]),
                     Quantity::FractureCount => Some(sim.broken_bonds() as f64),
                     Quantity::Steps => Some(sim.steps() as f64),
+                    Quantity::FractureEnergy => Some(sim.fracture_energy()),
                     _ => None,
                 })
                 .collect()

@@ -89,6 +89,8 @@ pub enum Quantity {
     StrainEnergy,
     /// Output: solver steps taken (Integer).
     Steps,
+    /// Output: strain energy released by broken bonds so far (J).
+    FractureEnergy,
     /// Output: velocity of probe k (m/s).
     ProbeVelocity(usize, usize),
     /// Output: mean displacement of the particles of load region r (m).
@@ -575,6 +577,22 @@ impl VariableTable {
                 );
             }
         }
+        // Energy budget of fracture (after the coupling outputs: earlier value references stay
+        // put).
+        push(
+            "fracture_energy".into(),
+            Real,
+            Output,
+            Continuous,
+            Some("J"),
+            "Strain energy released by broken bonds so far: at each break, what the particles \
+             that lost bonds held just before less what they hold after (never negative; \
+             kinetic + strain + contact + fracture_energy is conserved without damping, loads \
+             and gravity; per metre of depth in 2D; 0 for the paper's operators)"
+                .into(),
+            None,
+            Quantity::FractureEnergy,
+        );
         // Scene names are unique per kind (loads excepted); should two variables still share a
         // name, the later ones get a suffix so that the table is always valid.
         let mut seen = std::collections::HashSet::new();

@@ -45,6 +45,14 @@ pub struct ElasticOperator<const D: usize> {
     pub l0: f64,
     /// Second-order model: its bond weights (empty for the other models).
     pub second: SecondOrder<D>,
+    /// Energy operators: the share of particle i's energy it keeps, 1 until a break. At a
+    /// break the particle is re-fitted without the broken bonds, and nothing bounds the
+    /// re-fitted energy at the same positions by the energy held before (a fit over fewer
+    /// bonds can see more strain); where it would be higher, the share drops so that the
+    /// energy is unchanged ([`ElasticOperator::limit_at_break`]): a break releases energy and
+    /// never creates it (issue 7, tests/energy_fracture.rs). A share never grows back
+    /// (damage is irreversible).
+    pub retained: Vec<f64>,
 }
 
 /// Scratch arrays of the two passes.
@@ -95,6 +103,7 @@ where
             base_vol: vec![l0.powi(D as i32); n_particles],
             l0,
             second: SecondOrder::default(),
+            retained: vec![1.0; n_particles],
         };
         if model == ElasticModel::SecondOrder {
             op.second = SecondOrder::new(
@@ -181,6 +190,7 @@ where
                     &self.lame,
                     &self.laws,
                     &self.vol,
+                    &self.retained,
                     self.volume,
                     self.l0,
                     &mut s.second,
@@ -259,20 +269,7 @@ where
             .zip(par_iter_mut!(s.collapsed))
             .enumerate()
             .for_each(|(i, ((f_out, b_out), c_out))| {
-                let ui = p.u[i];
-                let mut g = Mat::<D>::zeros();
-                for b in bonds.of(i) {
-                    let w0 = bonds.w0[b];
-                    if w0 == 0.0 {
-                        continue;
-                    }
-                    let r0 = bonds.r0[b];
-                    let om = w0 / r0.norm_squared();
-                    // r = r0 + (u_j - u_i): at rest exactly r0, so G = K bit for bit.
-                    let r = r0 + (p.u[bonds.nbr[b] as usize] - ui);
-                    g += (r * om) * r0.transpose();
-                }
-                let f = g * self.k_inv[i];
+                let f = self.corrected_defgrad(p, bonds, i);
                 let body = p.body[i] as usize;
                 let (mu, lambda) = self.lame[body];
                 let law = self.laws[body];
@@ -293,15 +290,18 @@ where
                         Mat::<D>::zeros()
                     }
                 };
-                *b_out = (f * stress * self.k_inv[i]) * self.vol[i] - f * (self.kappa(mu) * v);
+                *b_out = ((f * stress * self.k_inv[i]) * self.vol[i] - f * (self.kappa(mu) * v))
+                    * self.retained[i];
                 *f_out = f;
             });
         let bm = &s.bmat;
-        // Pass 2: f_i = -dE/dx_i = sum_j w/|r0|^2 [(B_i + B_j) r0_ij + 2 kappa V r_ij].
+        // Pass 2: f_i = -dE/dx_i = sum_j w/|r0|^2 [(B_i + B_j) r0_ij + (s_i + s_j) kappa V r_ij]
+        // with s the retained shares (B carries its particle's share).
+        let share = &self.retained;
         par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
             let ui = p.u[i];
             let bi = bm[i];
-            let two_kv = 2.0 * self.kappa(self.lame[p.body[i] as usize].0) * v;
+            let kv = self.kappa(self.lame[p.body[i] as usize].0) * v;
             let mut acc = Vect::<D>::zeros();
             for b in bonds.of(i) {
                 let w0 = bonds.w0[b];
@@ -311,7 +311,8 @@ where
                 let j = bonds.nbr[b] as usize;
                 let r0 = bonds.r0[b];
                 let om = w0 / r0.norm_squared();
-                acc += ((bi + bm[j]) * r0 + (r0 + (p.u[j] - ui)) * two_kv) * om;
+                acc +=
+                    ((bi + bm[j]) * r0 + (r0 + (p.u[j] - ui)) * ((share[i] + share[j]) * kv)) * om;
             }
             *f_out = acc;
         });
@@ -396,6 +397,100 @@ where
             });
     }
 
+    /// Corrected model: energy of particle i (J) with deformation gradient `f`, without its
+    /// retained share: V_i W(E) and the stabilisation springs of its bonds. `collapsed`: the
+    /// law has no energy at the state (a collapsed neo-Hookean particle: the energy grows
+    /// without bound as J -> 0, and the step that made it stops the run).
+    fn corrected_energy(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        i: usize,
+        f: &Mat<D>,
+        collapsed: bool,
+    ) -> f64 {
+        let (mu, lambda) = self.lame[p.body[i] as usize];
+        let e = (f.transpose() * f - self.span[i]) * 0.5;
+        let w = if collapsed {
+            None
+        } else {
+            self.laws[p.body[i] as usize].energy(&e, mu, lambda)
+        };
+        let mut total = self.vol[i] * w.unwrap_or(f64::INFINITY);
+        let kv = self.kappa(mu) * self.volume;
+        let ui = p.u[i];
+        for b in bonds.of(i) {
+            let r0 = bonds.r0[b];
+            let om = bonds.w0[b] / r0.norm_squared();
+            let res = (r0 + (p.u[bonds.nbr[b] as usize] - ui)) - f * r0;
+            total += 0.5 * kv * om * res.norm_squared();
+        }
+        total
+    }
+
+    /// Corrected model: deformation gradient F_i = (sum_j w r_ij r0_ij^T / |r0|^2) K_i^-1 at
+    /// the current positions (exact for affine motion).
+    #[inline(always)]
+    fn corrected_defgrad(&self, p: &Particles<D>, bonds: &Bonds<D>, i: usize) -> Mat<D> {
+        let ui = p.u[i];
+        let mut g = Mat::<D>::zeros();
+        for b in bonds.of(i) {
+            let w0 = bonds.w0[b];
+            if w0 == 0.0 {
+                continue;
+            }
+            let r0 = bonds.r0[b];
+            let om = w0 / r0.norm_squared();
+            // r = r0 + (u_j - u_i): at rest exactly r0, so G = K bit for bit.
+            let r = r0 + (p.u[bonds.nbr[b] as usize] - ui);
+            g += (r * om) * r0.transpose();
+        }
+        g * self.k_inv[i]
+    }
+
+    /// Energy of particle i (J) at the current positions with its current weights and
+    /// retained share, evaluated from scratch (at a break, between force passes); None for
+    /// the paper's operators, whose springs are the bonds themselves.
+    pub fn particle_energy(&self, p: &Particles<D>, bonds: &Bonds<D>, i: usize) -> Option<f64> {
+        let e = match self.model {
+            ElasticModel::Corrected => {
+                let f = self.corrected_defgrad(p, bonds, i);
+                let law = self.laws[p.body[i] as usize];
+                let collapsed = law != MaterialLaw::SaintVenantKirchhoff
+                    && self.span[i] == Mat::<D>::identity()
+                    && law::det(&f) <= 0.0;
+                self.corrected_energy(p, bonds, i, &f, collapsed)
+            }
+            ElasticModel::SecondOrder => self.second.particle_energy(
+                p,
+                bonds,
+                &self.lame,
+                &self.laws,
+                &self.vol,
+                self.volume,
+                self.l0,
+                i,
+            ),
+            ElasticModel::Paper | ElasticModel::PaperLocal => return None,
+        };
+        Some(self.retained[i] * e)
+    }
+
+    /// At a break: particle i held `before` (J) just before its bonds broke and holds `now`
+    /// after its re-fit (both with its share as it was). Where `now` is higher, its share
+    /// drops so that its energy stays `before`. Returns the energy the break released at the
+    /// particle (J, >= 0).
+    pub fn limit_at_break(&mut self, i: usize, before: f64, now: f64) -> f64 {
+        if !(before.is_finite() && now.is_finite()) {
+            return 0.0;
+        }
+        if now > before {
+            self.retained[i] *= before.max(0.0) / now;
+            return 0.0;
+        }
+        before - now
+    }
+
     /// Elastic strain energy of the current state (J); evaluated for output, not in the step.
     pub fn strain_energy(&self, p: &Particles<D>, bonds: &Bonds<D>, s: &ElasticScratch<D>) -> f64 {
         if self.model == ElasticModel::SecondOrder {
@@ -405,6 +500,7 @@ where
                 &self.lame,
                 &self.laws,
                 &self.vol,
+                &self.retained,
                 self.volume,
                 self.l0,
                 &s.second,
@@ -420,21 +516,8 @@ where
                 ElasticModel::SecondOrder => unreachable!("handled above"),
                 ElasticModel::Corrected => {
                     let f = s.defgrad.get(i).copied().unwrap_or_else(Mat::<D>::identity);
-                    let e = (f.transpose() * f - self.span[i]) * 0.5;
-                    // A collapsed neo-Hookean particle: the energy grows without bound as
-                    // J -> 0 (the step that made it stops the run).
-                    let w = match s.collapsed.get(i) {
-                        Some(&1) => None,
-                        _ => self.laws[p.body[i] as usize].energy(&e, mu, lambda),
-                    };
-                    total += self.vol[i] * w.unwrap_or(f64::INFINITY);
-                    let kv = self.kappa(mu) * v;
-                    for b in bonds.of(i) {
-                        let r0 = bonds.r0[b];
-                        let om = bonds.w0[b] / r0.norm_squared();
-                        let res = (r0 + (p.u[bonds.nbr[b] as usize] - ui)) - f * r0;
-                        total += 0.5 * kv * om * res.norm_squared();
-                    }
+                    let collapsed = s.collapsed.get(i) == Some(&1);
+                    total += self.retained[i] * self.corrected_energy(p, bonds, i, &f, collapsed);
                 }
                 ElasticModel::Paper | ElasticModel::PaperLocal => {
                     let nd = if self.model == ElasticModel::PaperLocal {

@@ -55,29 +55,61 @@ pub fn break_bonds<const D: usize>(
 where
     Space: Dim<D>,
 {
-    let n = u.len();
-    flag.resize(n, 0);
-    let limit2 = match measure {
+    let touched = strained_particles(u, q, bonds, eps_max, measure, flag);
+    let pairs = break_strained(u, q, bonds, eps_max, measure, &touched);
+    (touched, pairs)
+}
+
+/// `limit2` of [`strained`] for eps_max and the measure.
+fn strain_limit2(eps_max: f64, measure: BondStrain) -> f64 {
+    match measure {
         BondStrain::Stretch => (1.0 + eps_max) * (1.0 + eps_max),
         _ => eps_max * eps_max,
-    };
-    {
-        let b = &*bonds;
-        // Gather pass: each particle tests its own bonds and writes only its own flag.
-        par_iter_mut!(flag[..]).enumerate().for_each(|(i, f)| {
-            let hit = b.of(i).any(|k| {
-                b.w0[k] != 0.0 && strained(measure, limit2, i, b.nbr[k] as usize, b.r0[k], u, q)
-            });
-            *f = u8::from(hit);
-        });
     }
-    let mut touched = Vec::new();
+}
+
+/// The particles (ascending) with a bond strained beyond eps_max, which [`break_strained`]
+/// then breaks. `flag` is scratch (one byte per particle).
+pub fn strained_particles<const D: usize>(
+    u: &[Vect<D>],
+    q: &[<Space as Dim<D>>::Rotation],
+    bonds: &Bonds<D>,
+    eps_max: f64,
+    measure: BondStrain,
+    flag: &mut Vec<u8>,
+) -> Vec<usize>
+where
+    Space: Dim<D>,
+{
+    flag.resize(u.len(), 0);
+    let limit2 = strain_limit2(eps_max, measure);
+    // Gather pass: each particle tests its own bonds and writes only its own flag.
+    par_iter_mut!(flag[..]).enumerate().for_each(|(i, f)| {
+        let hit = bonds.of(i).any(|k| {
+            bonds.w0[k] != 0.0
+                && strained(measure, limit2, i, bonds.nbr[k] as usize, bonds.r0[k], u, q)
+        });
+        *f = u8::from(hit);
+    });
+    (0..u.len()).filter(|&i| flag[i] != 0).collect()
+}
+
+/// Breaks the bonds of the `touched` particles (from [`strained_particles`] at the same state)
+/// strained beyond eps_max. Returns the number of pairs broken.
+pub fn break_strained<const D: usize>(
+    u: &[Vect<D>],
+    q: &[<Space as Dim<D>>::Rotation],
+    bonds: &mut Bonds<D>,
+    eps_max: f64,
+    measure: BondStrain,
+    touched: &[usize],
+) -> u64
+where
+    Space: Dim<D>,
+{
+    let limit2 = strain_limit2(eps_max, measure);
     let mut pairs = 0u64;
-    for (i, &hit) in flag.iter().enumerate() {
-        if hit == 0 {
-            continue;
-        }
-        touched.push(i);
+    for &i in touched {
         for k in bonds.of(i) {
             if bonds.w0[k] == 0.0 {
                 continue;
@@ -93,7 +125,7 @@ where
             }
         }
     }
-    (touched, pairs)
+    pairs
 }
 
 /// Number of broken (directed) bonds of particle i.

@@ -489,6 +489,72 @@ impl<const D: usize> SecondOrder<D>
 where
     Space: Dim<D>,
 {
+    /// Displacement gradient H_i and Hessian G_i of particle i from the displacements `uu` of
+    /// the fits (ghosts reflected, followers following): the weighted sums over its bonds.
+    #[inline(always)]
+    fn fit(
+        &self,
+        bonds: &Bonds<D>,
+        i: usize,
+        uu: impl Fn(usize) -> Vect<D>,
+    ) -> (Mat<D>, [Mat<D>; D]) {
+        let ui = uu(i);
+        let mut h = Mat::<D>::zeros();
+        let mut g = [Mat::<D>::zeros(); D];
+        let quad = self.quadratic[i];
+        for b in bonds.of(i) {
+            if self.weight(bonds, b) == 0.0 {
+                continue;
+            }
+            let du = uu(bonds.nbr[b] as usize) - ui;
+            h += du * self.g[b].transpose();
+            if quad {
+                let hb = &self.h[b];
+                for (a, ga) in g.iter_mut().enumerate() {
+                    *ga += du * hb.row(a);
+                }
+            }
+        }
+        (h, g)
+    }
+
+    /// Displacement of particle k as the fits see it: a ghost's reflected field, a follower's
+    /// constrained value, else its own.
+    pub fn effective_displacement(&self, u: &[Vect<D>], k: usize) -> Vect<D> {
+        if let Some(g) = self.ghost_of(k) {
+            return g.reflect(&u[k], &u[g.master as usize]);
+        }
+        if self.following[k] {
+            if let Some(fl) = self.followers.iter().find(|f| f.particle as usize == k) {
+                return fl.follow(|j| u[j]);
+            }
+        }
+        u[k]
+    }
+
+    /// Energy of particle i's cell at the current displacements (J) with its current fit,
+    /// without its retained share: its term of [`SecondOrder::strain_energy`], evaluated from
+    /// scratch (at a break, between force passes).
+    #[allow(clippy::too_many_arguments)]
+    pub fn particle_energy(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        lame: &[(f64, f64)],
+        laws: &[MaterialLaw],
+        vol: &[f64],
+        volume: f64,
+        l0: f64,
+        i: usize,
+    ) -> f64 {
+        if self.rigid[i] {
+            return 0.0;
+        }
+        let uu = |k: usize| self.effective_displacement(&p.u, k);
+        let (h, g) = self.fit(bonds, i, uu);
+        self.cell_energy(p, bonds, lame, laws, vol, volume, l0, i, &h, &g, uu)
+    }
+
     /// Green strain of F = P + H: (H + H^T + H^T H) / 2 for a full neighbourhood (P = I, exact
     /// zero at rest), (P H + H^T P + H^T H) / 2 in the span P otherwise.
     #[inline(always)]
@@ -569,6 +635,7 @@ where
         lame: &[(f64, f64)],
         laws: &[MaterialLaw],
         vol: &[f64],
+        retained: &[f64],
         volume: f64,
         l0: f64,
         s: &mut SecondOrderScratch<D>,
@@ -611,23 +678,9 @@ where
             .enumerate()
             .for_each(|(i, (((gr, he), out), c_out))| {
                 let ui = uu[i];
-                let mut h = Mat::<D>::zeros();
-                let mut g = [Mat::<D>::zeros(); D];
                 let quad = self.quadratic[i];
                 let range = bonds.of(i);
-                for b in range.clone() {
-                    if self.weight(bonds, b) == 0.0 {
-                        continue;
-                    }
-                    let du = uu[bonds.nbr[b] as usize] - ui;
-                    h += du * self.g[b].transpose();
-                    if quad {
-                        let hb = &self.h[b];
-                        for (a, ga) in g.iter_mut().enumerate() {
-                            *ga += du * hb.row(a);
-                        }
-                    }
-                }
+                let (h, g) = self.fit(bonds, i, |k| uu[k]);
                 *gr = h;
                 *he = g;
                 *c_out = 0;
@@ -705,6 +758,11 @@ where
                     }
                     out[k] += d;
                 }
+                // The retained share scales the whole energy of the particle.
+                let share = retained[i];
+                if share != 1.0 {
+                    out.iter_mut().for_each(|d| *d *= share);
+                }
             });
         let dbond = &s.dbond;
         // Pass 2: f_i = sum_j (dE/d du_ij - dE/d du_ji), du_ij = u_j - u_i.
@@ -737,8 +795,43 @@ where
     }
 
     /// Strain energy of the current state (J), the same energy whose gradient `forces` is.
-    #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+    #[allow(clippy::too_many_arguments)]
     pub fn strain_energy(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        lame: &[(f64, f64)],
+        laws: &[MaterialLaw],
+        vol: &[f64],
+        retained: &[f64],
+        volume: f64,
+        l0: f64,
+        s: &SecondOrderScratch<D>,
+    ) -> f64 {
+        let uu: &[Vect<D>] = if self.ghosts.is_empty() && self.followers.is_empty() {
+            &p.u
+        } else {
+            &s.ueff
+        };
+        let mut total = 0.0;
+        for i in 0..p.len() {
+            let (Some(h), Some(g)) = (s.grad.get(i), s.hess.get(i)) else {
+                break;
+            };
+            if self.rigid[i] {
+                continue;
+            }
+            total += retained[i]
+                * self.cell_energy(p, bonds, lame, laws, vol, volume, l0, i, h, g, |k| uu[k]);
+        }
+        total
+    }
+
+    /// Energy of particle i's cell (J) without its retained share, from its gradient `h`,
+    /// Hessian `g` and the fits' displacements `uu`: V W(E) + the cell term + the residuals of
+    /// its bonds.
+    #[allow(clippy::too_many_arguments)]
+    fn cell_energy(
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
@@ -747,54 +840,44 @@ where
         vol: &[f64],
         volume: f64,
         l0: f64,
-        s: &SecondOrderScratch<D>,
+        i: usize,
+        h: &Mat<D>,
+        g: &[Mat<D>; D],
+        uu: impl Fn(usize) -> Vect<D>,
     ) -> f64 {
         let cell = l0 * l0 / 12.0;
         let w = |e: &Mat<D>, mu: f64, lambda: f64| {
             mu * e.component_mul(e).sum() + 0.5 * lambda * e.trace().powi(2)
         };
-        let mut total = 0.0;
-        let uu: &[Vect<D>] = if self.ghosts.is_empty() && self.followers.is_empty() {
-            &p.u
-        } else {
-            &s.ueff
-        };
-        for i in 0..p.len() {
-            let Some(h) = s.grad.get(i) else { break };
-            if self.rigid[i] {
+        let body = p.body[i] as usize;
+        let (mu, lambda) = lame[body];
+        let f = self.span[i] + h;
+        let e = Self::green(h, &self.span[i], self.full[i]);
+        // A collapsed neo-Hookean particle: the energy grows without bound as J -> 0.
+        let inverted =
+            laws[body] != MaterialLaw::SaintVenantKirchhoff && self.full[i] && law::det(&f) <= 0.0;
+        let mut total = vol[i]
+            * laws[body]
+                .energy(&e, mu, lambda)
+                .filter(|_| !inverted)
+                .unwrap_or(f64::INFINITY);
+        if self.quadratic[i] && !self.closed.get(i).copied().unwrap_or(false) {
+            for ga in g.iter() {
+                let ea = f.transpose() * ga;
+                total += vol[i] * cell * w(&((ea + ea.transpose()) * 0.5), mu, lambda);
+            }
+        }
+        let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
+        let ui = uu(i);
+        for b in bonds.of(i) {
+            let w0 = self.weight(bonds, b);
+            if w0 == 0.0 {
                 continue;
             }
-            let g = &s.hess[i];
-            let body = p.body[i] as usize;
-            let (mu, lambda) = lame[body];
-            let f = self.span[i] + h;
-            let e = Self::green(h, &self.span[i], self.full[i]);
-            // A collapsed neo-Hookean particle: the energy grows without bound as J -> 0.
-            let inverted = laws[body] != MaterialLaw::SaintVenantKirchhoff
-                && self.full[i]
-                && law::det(&f) <= 0.0;
-            total += vol[i]
-                * laws[body]
-                    .energy(&e, mu, lambda)
-                    .filter(|_| !inverted)
-                    .unwrap_or(f64::INFINITY);
-            if self.quadratic[i] && !self.closed.get(i).copied().unwrap_or(false) {
-                for ga in g.iter() {
-                    let ea = f.transpose() * ga;
-                    total += vol[i] * cell * w(&((ea + ea.transpose()) * 0.5), mu, lambda);
-                }
-            }
-            let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
-            for b in bonds.of(i) {
-                let w0 = self.weight(bonds, b);
-                if w0 == 0.0 {
-                    continue;
-                }
-                let r0 = bonds.r0[b];
-                let du = uu[bonds.nbr[b] as usize] - uu[i];
-                let res = Self::residual(&du, &r0, h, g);
-                total += Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared()).0;
-            }
+            let r0 = bonds.r0[b];
+            let du = uu(bonds.nbr[b] as usize) - ui;
+            let res = Self::residual(&du, &r0, h, g);
+            total += Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared()).0;
         }
         total
     }

@@ -215,6 +215,13 @@ where
     /// The stable step as last measured (issue 7: it is measured again in the current
     /// configuration as the body deforms), so a restored state steps on with the same dt.
     pub stable_step: StableStepState<D>,
+    /// Per particle, the share of its elastic energy it kept through its breaks
+    /// (`ElasticOperator::retained`; empty: all 1).
+    #[serde(default)]
+    pub retained: Vec<f64>,
+    /// Strain energy released by the breaks so far (J).
+    #[serde(default)]
+    pub fracture_release: f64,
 }
 
 /// What the stable step's refresh carries from step to step.
@@ -264,6 +271,10 @@ where
     pub fracture_checks: u64,
     /// Bond pairs broken so far, Eq. (42).
     pub broken_pairs: u64,
+    /// Strain energy released by the breaks so far (J): at each break, what the particles
+    /// that lost bonds held just before less what they hold after their re-fit (never
+    /// negative, `ElasticOperator::limit_at_break`). 0 for the paper's operators.
+    pub fracture_release: f64,
     omega_max: f64,
     omega_elastic: f64,
     /// omega_max of the elastic model in the reference configuration (with the margin).
@@ -558,6 +569,7 @@ where
             contact,
             fracture_checks: 0,
             broken_pairs: 0,
+            fracture_release: 0.0,
             omega_max: 0.0,
             omega_elastic: 0.0,
             omega_reference: 0.0,
@@ -814,20 +826,39 @@ where
             return;
         };
         self.fracture_checks += 1;
-        let (touched, pairs) = super::fracture::break_bonds(
+        let measure = self.options.bond_strain;
+        let touched = super::fracture::strained_particles(
             &self.p.u,
             &self.p.q,
-            &mut self.bonds,
+            &self.bonds,
             eps,
-            self.options.bond_strain,
+            measure,
             &mut self.frac_flag,
         );
         if touched.is_empty() {
             return;
         }
+        // The energy each particle held just before the break: its re-fit may not exceed it.
+        let before: Vec<Option<f64>> = touched
+            .iter()
+            .map(|&i| self.op.particle_energy(&self.p, &self.bonds, i))
+            .collect();
+        let pairs = super::fracture::break_strained(
+            &self.p.u,
+            &self.p.q,
+            &mut self.bonds,
+            eps,
+            measure,
+            &touched,
+        );
         self.broken_pairs += pairs;
-        for &i in &touched {
+        for (&i, before) in touched.iter().zip(before) {
             self.op.refresh_particle(&self.bonds, i, self.p.n_ref[i]);
+            if let (Some(before), Some(now)) =
+                (before, self.op.particle_energy(&self.p, &self.bonds, i))
+            {
+                self.fracture_release += self.op.limit_at_break(i, before, now);
+            }
         }
         self.contact
             .bonds_broken(&self.bonds, &self.p.body, &touched);
@@ -1168,6 +1199,12 @@ where
             loads: self.loads.iter().map(|l| l.force).collect(),
             gravity: self.gravity,
             stable_step: self.stable.clone(),
+            retained: if self.op.retained.iter().all(|&r| r == 1.0) {
+                Vec::new()
+            } else {
+                self.op.retained.clone()
+            },
+            fracture_release: self.fracture_release,
         }
     }
 
@@ -1184,6 +1221,7 @@ where
             || ![0, n].contains(&s.stable_step.u_measured.len())
             || ![0, n].contains(&s.stable_step.eig_t.len())
             || ![0, n].contains(&s.stable_step.eig_r.len())
+            || ![0, n].contains(&s.retained.len())
         {
             return Err(SimError::Invalid(
                 "state does not belong to this scene (sizes differ)".into(),
@@ -1205,10 +1243,12 @@ where
             && s.stable_step
                 .eig_r
                 .iter()
-                .all(<Space as Dim<D>>::ang_finite))
+                .all(<Space as Dim<D>>::ang_finite)
+            && s.retained.iter().all(|r| (0.0..=1.0).contains(r))
+            && s.fracture_release.is_finite())
         {
             return Err(SimError::Invalid(
-                "state holds non-finite positions, velocities or bond weights".into(),
+                "state holds non-finite positions, velocities or bond weights, or retained energy shares outside [0, 1]".into(),
             ));
         }
         self.time = s.time;
@@ -1232,6 +1272,12 @@ where
             self.op.refresh_particle(&self.bonds, i, self.p.n_ref[i]);
         }
         self.broken_pairs = self.bonds.w0.iter().filter(|&&w| w == 0.0).count() as u64 / 2;
+        if s.retained.is_empty() {
+            self.op.retained.iter_mut().for_each(|r| *r = 1.0);
+        } else {
+            self.op.retained.clone_from(&s.retained);
+        }
+        self.fracture_release = s.fracture_release;
         self.contact.refresh_all(&self.bonds, &self.p.body);
         for (g, m) in self.groups.iter_mut().zip(&s.motions) {
             g.motion = *m;

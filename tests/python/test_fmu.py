@@ -224,12 +224,18 @@ def test_case3_with_fractured_surface_contact_completes_and_breaks_after_contact
     # bond may break before that; bonds break afterwards (fracture_count rises from zero) and the
     # run with contact detection between fractured surfaces completes to 1.7 s.
     fmu = fmu_path("case3_collision")
-    res = simulate_fmu(fmu, stop_time=1.7, output_interval=0.01, output=["fracture_count"])
-    t, n = res["time"], res["fracture_count"]
+    res = simulate_fmu(fmu, stop_time=1.7, output_interval=0.01,
+                       output=["fracture_count", "fracture_energy"])
+    t, n, released = res["time"], res["fracture_count"], res["fracture_energy"]
     assert t[-1] == pytest.approx(1.7, abs=1e-12)
     assert np.all(n[t < 0.07 - 1e-9] == 0)
     assert n[-1] > 0
     assert np.all(np.diff(n) >= 0), "broken bonds never heal"
+    # The energy the breaks released: none before the first break, then positive and never
+    # shrinking (a break releases energy and never creates it).
+    assert np.all(released[n == 0] == 0.0)
+    assert released[-1] > 0.0
+    assert np.all(np.diff(released) >= 0.0)
 
 
 def test_case3_without_fractured_surface_contact_breaks_and_never_returns_nan(capfd):

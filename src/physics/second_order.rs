@@ -813,18 +813,17 @@ where
         } else {
             &s.ueff
         };
-        let mut total = 0.0;
-        for i in 0..p.len() {
-            let (Some(h), Some(g)) = (s.grad.get(i), s.hess.get(i)) else {
-                break;
-            };
-            if self.rigid[i] {
-                continue;
-            }
-            total += retained[i]
-                * self.cell_energy(p, bonds, lame, laws, vol, volume, l0, i, h, g, |k| uu[k]);
-        }
-        total
+        // Before the first force pass the scratch is empty: nothing is strained yet.
+        s.grad
+            .iter()
+            .zip(&s.hess)
+            .zip(retained)
+            .enumerate()
+            .filter(|(i, _)| !self.rigid[*i])
+            .map(|(i, ((h, g), share))| {
+                share * self.cell_energy(p, bonds, lame, laws, vol, volume, l0, i, h, g, |k| uu[k])
+            })
+            .sum()
     }
 
     /// Energy of particle i's cell (J) without its retained share, from its gradient `h`,

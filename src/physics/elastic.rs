@@ -8,7 +8,7 @@ use super::law;
 use super::par::*;
 use super::params::{ElasticModel, Material, MaterialLaw};
 use super::particles::Particles;
-use super::second_order::{SecondOrder, SecondOrderScratch};
+use super::second_order::{Cells, SecondOrder, SecondOrderScratch};
 use crate::par_iter_mut;
 
 /// Precomputed constants of the elastic operator.
@@ -124,6 +124,18 @@ where
         op
     }
 
+    /// The per-particle data of the second-order operator's cells.
+    fn cells(&self) -> Cells<'_> {
+        Cells {
+            lame: &self.lame,
+            laws: &self.laws,
+            vol: &self.vol,
+            retained: &self.retained,
+            volume: self.volume,
+            l0: self.l0,
+        }
+    }
+
     /// K_i^-1 (pseudo-inverse when degenerate, [`shape_pinv`]) and the projector on the span of
     /// the intact bonds (exactly the identity when the neighbourhood has full rank).
     pub fn shape_inverse_span(&self, bonds: &Bonds<D>, i: usize) -> (Mat<D>, Mat<D>) {
@@ -187,12 +199,7 @@ where
                 self.second.forces(
                     p,
                     bonds,
-                    &self.lame,
-                    &self.laws,
-                    &self.vol,
-                    &self.retained,
-                    self.volume,
-                    self.l0,
+                    &self.cells(),
                     &mut s.second,
                     &mut s.collapsed,
                     force,
@@ -461,16 +468,7 @@ where
                     && law::det(&f) <= 0.0;
                 self.corrected_energy(p, bonds, i, &f, collapsed)
             }
-            ElasticModel::SecondOrder => self.second.particle_energy(
-                p,
-                bonds,
-                &self.lame,
-                &self.laws,
-                &self.vol,
-                self.volume,
-                self.l0,
-                i,
-            ),
+            ElasticModel::SecondOrder => self.second.particle_energy(p, bonds, &self.cells(), i),
             ElasticModel::Paper | ElasticModel::PaperLocal => return None,
         };
         Some(self.retained[i] * e)
@@ -494,17 +492,9 @@ where
     /// Elastic strain energy of the current state (J); evaluated for output, not in the step.
     pub fn strain_energy(&self, p: &Particles<D>, bonds: &Bonds<D>, s: &ElasticScratch<D>) -> f64 {
         if self.model == ElasticModel::SecondOrder {
-            return self.second.strain_energy(
-                p,
-                bonds,
-                &self.lame,
-                &self.laws,
-                &self.vol,
-                &self.retained,
-                self.volume,
-                self.l0,
-                &s.second,
-            );
+            return self
+                .second
+                .strain_energy(p, bonds, &self.cells(), &s.second);
         }
         let v = self.volume;
         let d = D as f64;

@@ -178,6 +178,19 @@ pub struct SecondOrderScratch<const D: usize> {
     pub ueff: Vec<Vect<D>>,
 }
 
+/// What the energy of a particle's cell needs besides the weights: per-body Lame constants
+/// (mu, lambda in Pa) and laws, per-particle volume (m^d) and retained share, the particle
+/// volume l0^d of the residual terms and the spacing l0 (m).
+#[derive(Clone, Copy, Debug)]
+pub struct Cells<'a> {
+    pub lame: &'a [(f64, f64)],
+    pub laws: &'a [MaterialLaw],
+    pub vol: &'a [f64],
+    pub retained: &'a [f64],
+    pub volume: f64,
+    pub l0: f64,
+}
+
 /// Number of basis functions of the quadratic fit: D linear + D (D + 1) / 2 quadratic.
 const fn basis_len(d: usize) -> usize {
     d + d * (d + 1) / 2
@@ -535,24 +548,13 @@ where
     /// Energy of particle i's cell at the current displacements (J) with its current fit,
     /// without its retained share: its term of [`SecondOrder::strain_energy`], evaluated from
     /// scratch (at a break, between force passes).
-    #[allow(clippy::too_many_arguments)]
-    pub fn particle_energy(
-        &self,
-        p: &Particles<D>,
-        bonds: &Bonds<D>,
-        lame: &[(f64, f64)],
-        laws: &[MaterialLaw],
-        vol: &[f64],
-        volume: f64,
-        l0: f64,
-        i: usize,
-    ) -> f64 {
+    pub fn particle_energy(&self, p: &Particles<D>, bonds: &Bonds<D>, c: &Cells, i: usize) -> f64 {
         if self.rigid[i] {
             return 0.0;
         }
         let uu = |k: usize| self.effective_displacement(&p.u, k);
         let (h, g) = self.fit(bonds, i, uu);
-        self.cell_energy(p, bonds, lame, laws, vol, volume, l0, i, &h, &g, uu)
+        self.cell_energy(p, bonds, c, i, &h, &g, uu)
     }
 
     /// Green strain of F = P + H: (H + H^T + H^T H) / 2 for a full neighbourhood (P = I, exact
@@ -627,17 +629,11 @@ where
     /// constants and laws. `collapsed[i]` is set to 1 where the law has no energy at the
     /// particle's state (a collapsed or inverted neo-Hookean particle: its stress is taken as
     /// zero), to 0 elsewhere.
-    #[allow(clippy::too_many_arguments)]
     pub fn forces(
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
-        lame: &[(f64, f64)],
-        laws: &[MaterialLaw],
-        vol: &[f64],
-        retained: &[f64],
-        volume: f64,
-        l0: f64,
+        c: &Cells,
         s: &mut SecondOrderScratch<D>,
         collapsed: &mut [u8],
         force: &mut [Vect<D>],
@@ -645,6 +641,14 @@ where
         let n = p.len();
         s.grad.resize(n, Mat::<D>::zeros());
         s.hess.resize(n, [Mat::<D>::zeros(); D]);
+        let Cells {
+            lame,
+            laws,
+            vol,
+            retained,
+            volume,
+            l0,
+        } = *c;
         let cell = l0 * l0 / 12.0;
         let derived = !self.ghosts.is_empty() || !self.followers.is_empty();
         if derived {
@@ -795,17 +799,11 @@ where
     }
 
     /// Strain energy of the current state (J), the same energy whose gradient `forces` is.
-    #[allow(clippy::too_many_arguments)]
     pub fn strain_energy(
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
-        lame: &[(f64, f64)],
-        laws: &[MaterialLaw],
-        vol: &[f64],
-        retained: &[f64],
-        volume: f64,
-        l0: f64,
+        c: &Cells,
         s: &SecondOrderScratch<D>,
     ) -> f64 {
         let uu: &[Vect<D>] = if self.ghosts.is_empty() && self.followers.is_empty() {
@@ -817,12 +815,10 @@ where
         s.grad
             .iter()
             .zip(&s.hess)
-            .zip(retained)
+            .zip(c.retained)
             .enumerate()
             .filter(|(i, _)| !self.rigid[*i])
-            .map(|(i, ((h, g), share))| {
-                share * self.cell_energy(p, bonds, lame, laws, vol, volume, l0, i, h, g, |k| uu[k])
-            })
+            .map(|(i, ((h, g), share))| share * self.cell_energy(p, bonds, c, i, h, g, |k| uu[k]))
             .sum()
     }
 
@@ -834,16 +830,20 @@ where
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
-        lame: &[(f64, f64)],
-        laws: &[MaterialLaw],
-        vol: &[f64],
-        volume: f64,
-        l0: f64,
+        c: &Cells,
         i: usize,
         h: &Mat<D>,
         g: &[Mat<D>; D],
         uu: impl Fn(usize) -> Vect<D>,
     ) -> f64 {
+        let Cells {
+            lame,
+            laws,
+            vol,
+            volume,
+            l0,
+            ..
+        } = *c;
         let cell = l0 * l0 / 12.0;
         let w = |e: &Mat<D>, mu: f64, lambda: f64| {
             mu * e.component_mul(e).sum() + 0.5 * lambda * e.trace().powi(2)

@@ -298,6 +298,16 @@ fn broken_bonds_survive_state_restore_bitwise() {
         assert_eq!(a.broken_pairs, b.broken_pairs);
         assert_eq!(a.bonds.w0, b.bonds.w0);
         assert_eq!(a.op.retained, b.op.retained);
+        // A state whose shares are outside [0, 1] or not finite is refused, the world unchanged.
+        for bad in [1.5, -0.1, f64::NAN] {
+            let mut s2 = b.state();
+            s2.retained = vec![bad; b.len()];
+            let err = b
+                .set_state(&s2)
+                .expect_err("a share outside [0, 1] must be refused");
+            assert!(err.to_string().contains("retained"), "{err}");
+            assert_eq!(b.op.retained, a.op.retained);
+        }
         assert_eq!(a.fracture_release.to_bits(), b.fracture_release.to_bits());
         assert!(a.p.x.iter().zip(&b.p.x).all(|(p, q)| p
             .iter()

@@ -443,6 +443,49 @@ pub fn elastica_reference() -> Vec<ElasticaLevel> {
         .collect()
 }
 
+/// reference/cantilever3d_nonlinear_fem.json (finite-strain 3D FEM with the solver's laws,
+/// tools/fem_large_deflection.py).
+pub const CANTILEVER_NONLINEAR_FEM_JSON: &str =
+    include_str!("../reference/cantilever3d_nonlinear_fem.json");
+
+/// Tip displacement on the axis of the finite-strain 3D FEM (Hex27, Newton, Richardson over the
+/// meshes) of the cantilever under the dead load rho g, with the same strain energy law as the
+/// particle model: the reference without the elastica's simplifications (linear
+/// moment-curvature, inextensible, shear-free axis).
+#[derive(Clone, Copy, Debug)]
+pub struct NonlinearTip {
+    /// Gravity magnitude (m/s^2).
+    pub g: f64,
+    /// Tip displacement along z and x (m).
+    pub uz: f64,
+    pub ux: f64,
+}
+
+/// The load levels of the finite-strain FEM reference for `law`: g = 9.81 and the three elastica
+/// levels (216 / 361 / 580 m/s^2).
+pub fn nonlinear_fem_reference(law: MaterialLaw) -> Vec<NonlinearTip> {
+    let v: serde_json::Value =
+        serde_json::from_str(CANTILEVER_NONLINEAR_FEM_JSON).expect("reference JSON");
+    let levels = v["laws"][law.name()]["converged"]
+        .as_array()
+        .unwrap_or_else(|| panic!("nonlinear reference lacks law {}", law.name()));
+    // the Richardson limit where the three finest meshes gave one, else the finest mesh
+    let best = |c: &serde_json::Value| {
+        c["richardson"]
+            .as_f64()
+            .or_else(|| c["finest"].as_f64())
+            .expect("nonlinear reference lacks a tip value")
+    };
+    levels
+        .iter()
+        .map(|l| NonlinearTip {
+            g: l["g_m_s2"].as_f64().expect("level lacks g_m_s2"),
+            uz: best(&l["tip_uz_m"]),
+            ux: best(&l["tip_ux_m"]),
+        })
+        .collect()
+}
+
 /// Settings of the dynamic relaxation of [`elastica_static`].
 #[derive(Clone, Copy, Debug)]
 pub struct RelaxOptions {

@@ -1,7 +1,8 @@
 //! Diagnostic (issue 7): the summation-by-parts closure of the second-order operator's free
 //! faces (module `physics::sbp`) for the paper's cases 1 and 2 and the bending benchmarks: per
 //! body the solve's iterations, residuals, largest correction and wall time, or why a body
-//! keeps its plain fits. `cargo run --release --example closure_report`
+//! keeps its plain fits. `cargo run --release --example closure_report`; `-- cube N` reports a
+//! free cube of N^3 particles instead (the bulky body whose build is the slowest).
 use mps_solid::bending::{cantilever3d_scene, plate2d_scene};
 use mps_solid::cases::{case1_scene, case2_scene, Support};
 use mps_solid::physics::ElasticModel;
@@ -20,7 +21,33 @@ where
     }
 }
 
+/// A free cube of n^3 particles at dp 0.1 m, second_order (the default operator).
+fn cube_scene(n: usize) -> Scene {
+    let side = 0.1 * n as f64;
+    serde_json::from_value(serde_json::json!({
+        "name": format!("cube{n}"),
+        "dimension": 3,
+        "particle_spacing": 0.1,
+        "bodies": [{
+            "name": "cube",
+            "material": {"density": 1000.0, "young": 1e6, "poisson": 0.3},
+            "boxes": [{"min": [0.0, 0.0, 0.0], "max": [side, side, side]}]
+        }],
+        "end_time": 0.001,
+        "output_interval": 0.001
+    }))
+    .expect("cube scene")
+}
+
 fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("cube") {
+        let n = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(20);
+        let t = std::time::Instant::now();
+        report::<3>(&format!("cube {n}^3"), &cube_scene(n));
+        println!("build {:.1} s", t.elapsed().as_secs_f64());
+        return;
+    }
     let so = ElasticModel::SecondOrder;
     report::<3>("case 1 (dp 0.025)", &case1_scene(0.025, so, None));
     report::<3>(

@@ -35,7 +35,6 @@ Usage:
 """
 
 import argparse
-import math
 import os
 import sys
 import time

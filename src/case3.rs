@@ -25,6 +25,8 @@ pub const CASE3_BLOCK: Material = Material {
     poisson: 0.3,
     law: MaterialLaw::SaintVenantKirchhoff,
 };
+/// The paper's particle spacing of case 3 (m).
+pub const CASE3_DP: f64 = 0.05;
 /// Cube side (m) and speed (m/s, along -y).
 pub const CUBE_SIDE: f64 = 0.5;
 pub const CUBE_SPEED: f64 = 5.0;

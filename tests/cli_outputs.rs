@@ -176,3 +176,57 @@ fn under_resolved_geometry_is_warned_on_stderr() {
     assert!(ok, "{stdout}\n{stderr}");
     assert!(!stderr.contains("warning"), "{stderr}");
 }
+
+/// `mps cases` (the main job) runs the paper's case 3 besides cases 1 and 2: both variants of
+/// Figure 9, each with the paper's event times beside the run's, and `--case` selects. Cut to
+/// 0.08 s (`--case3-end`), past the first contact at 0.07 s (the paper's time; the cube starts
+/// 0.35 m from the block at 5 m/s, so contact is at 0.35 / 5 = 0.07 s to within a contact
+/// check interval of 2.5 ms), before any break.
+#[test]
+fn cases_runs_case_3_and_selects_cases() {
+    let out = Command::new(env!("CARGO_BIN_EXE_mps"))
+        .args(["cases", "--case", "3", "--case3-end", "0.08", "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let runs = v.as_array().unwrap();
+    assert_eq!(
+        runs.len(),
+        2,
+        "case 3 alone: its two variants, no case 1 or 2"
+    );
+    let variants: Vec<bool> = runs
+        .iter()
+        .map(|r| r["fractured_surfaces"].as_bool().unwrap())
+        .collect();
+    assert_eq!(variants, [true, false]);
+    for r in runs {
+        assert_eq!(r["dp"], 0.05);
+        assert_eq!(r["end_time"], 0.08);
+        let t = r["first_contact"].as_f64().unwrap();
+        assert!((t - 0.07).abs() <= 0.0025, "first contact at {t} s");
+        assert!(r["first_fracture"].is_null());
+    }
+    // Text mode names the case and the paper's times; a case outside 1-3 is refused.
+    let text = Command::new(env!("CARGO_BIN_EXE_mps"))
+        .args(["cases", "--case", "3", "--case3-end", "0.01"])
+        .output()
+        .unwrap();
+    let s = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.status.success() && s.contains("Case 3: cube hits block"),
+        "{s}"
+    );
+    assert!(s.contains("(paper 0.07 s)"), "{s}");
+    let bad = Command::new(env!("CARGO_BIN_EXE_mps"))
+        .args(["cases", "--case", "4"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("not in 1..=3"));
+}

@@ -61,36 +61,64 @@ fn undamped_cantilever_keeps_its_energy_over_100_periods() {
     let tip = (0..w.len())
         .filter(|&i| pts[i][0] > xmax - 0.5 * L0)
         .collect::<Vec<_>>();
-    let energy = |w: &World<2>| w.kinetic_energy() + w.strain_energy();
-    let e0 = energy(&w);
     let dt = w.max_dt();
-    // Energy per step and the upward zero crossings of the mean tip displacement.
-    let mut e = vec![e0];
-    let mut crossings = vec![];
-    let mut prev = 0.0;
-    while crossings.len() < 102 {
-        w.step(dt).unwrap();
-        e.push(energy(&w));
-        let uy = tip.iter().map(|&i| w.p.u[i][1]).sum::<f64>() / tip.len() as f64;
-        if prev < 0.0 && uy >= 0.0 {
-            crossings.push(e.len() - 1);
-        }
-        prev = uy;
-        assert!(e.len() < 2_000_000, "no vibration found");
-    }
-    // Mean over one period (the measured energy of symplectic Euler oscillates by O(omega dt)
-    // within a period around a conserved shadow energy; its mean drifts only if the scheme
-    // gains or loses energy).
-    let mean = |a: usize, b: usize| e[a..b].iter().sum::<f64>() / (b - a) as f64;
-    let first = mean(crossings[0], crossings[1]);
-    let last = mean(crossings[100], crossings[101]);
-    let drift = (last - first).abs() / first;
+    let sw = Swing::record(&mut w, &tip, 102, |_| dt, |_, _, _| {});
+    let (first, last, drift) = sw.drift(0, 100);
     eprintln!(
-        "E0 = {e0:.6e} J, first period mean {first:.6e}, after 100 periods {last:.6e}: drift {:.3e} ({} steps/period)",
+        "E0 = {:.6e} J, first period mean {first:.6e}, after 100 periods {last:.6e}: drift {:.3e} ({} steps/period)",
+        sw.e[0],
         drift,
-        (crossings[101] - crossings[0]) / 101
+        (sw.crossings[101] - sw.crossings[0]) / 101
     );
     assert!(drift < 1e-3, "energy drift {drift} over 100 periods");
+}
+
+/// A free vibration's record: kinetic + strain energy at the start and after every step, and the
+/// steps at which the mean tip displacement u_y crosses zero upwards.
+struct Swing {
+    e: Vec<f64>,
+    crossings: Vec<usize>,
+}
+
+impl Swing {
+    /// Steps `w` by `dt(w)` until `n` upward zero crossings of the mean u_y of `tip`; `each` sees
+    /// the world, the step count and that mean after every step.
+    fn record(
+        w: &mut World<2>,
+        tip: &[usize],
+        n: usize,
+        dt: impl Fn(&World<2>) -> f64,
+        mut each: impl FnMut(&World<2>, usize, f64),
+    ) -> Swing {
+        let energy = |w: &World<2>| w.kinetic_energy() + w.strain_energy();
+        let mut sw = Swing {
+            e: vec![energy(w)],
+            crossings: vec![],
+        };
+        let mut prev = 0.0;
+        while sw.crossings.len() < n {
+            w.step(dt(w)).unwrap();
+            sw.e.push(energy(w));
+            let uy = tip.iter().map(|&i| w.p.u[i][1]).sum::<f64>() / tip.len() as f64;
+            each(w, sw.e.len() - 1, uy);
+            if prev < 0.0 && uy >= 0.0 {
+                sw.crossings.push(sw.e.len() - 1);
+            }
+            prev = uy;
+            assert!(sw.e.len() < 2_000_000, "no vibration found");
+        }
+        sw
+    }
+
+    /// Mean energy over period a and over period b (J), and their relative difference (-). The
+    /// measured energy of symplectic Euler oscillates by O(omega dt) within a period around a
+    /// conserved shadow energy; its mean drifts only if the scheme gains or loses energy.
+    fn drift(&self, a: usize, b: usize) -> (f64, f64, f64) {
+        let c = &self.crossings;
+        let mean = |k: usize| self.e[c[k]..c[k + 1]].iter().sum::<f64>() / (c[k + 1] - c[k]) as f64;
+        let (first, last) = (mean(a), mean(b));
+        (first, last, (last - first).abs() / first)
+    }
 }
 
 /// Two 8 x 8 blocks, 2 l0 apart, closing at `closing` m/s (half each) along x; no gravity.
@@ -296,27 +324,14 @@ fn large_amplitude_vibration_keeps_its_energy() {
     let tip: Vec<usize> = (0..w.len())
         .filter(|&i| (w.p.x[i] - w.p.u[i])[0] > 0.39)
         .collect();
-    let energy = |w: &World<2>| w.kinetic_energy() + w.strain_energy();
-    let mut e = vec![energy(w)];
-    let (mut crossings, mut prev, mut peak, mut strain) = (vec![], 0.0, 0.0f64, 0.0f64);
-    while crossings.len() < 10 {
-        w.step(w.max_dt()).unwrap();
-        e.push(energy(w));
-        let uy = tip.iter().map(|&i| w.p.u[i][1]).sum::<f64>() / tip.len() as f64;
+    let (mut peak, mut strain) = (0.0f64, 0.0f64);
+    let sw = Swing::record(w, &tip, 10, World::max_dt, |w, step, uy| {
         peak = peak.max(uy.abs());
-        if e.len() % 50 == 0 {
+        if step % 50 == 0 {
             strain = strain.max(w.max_bond_strain().0);
         }
-        if prev < 0.0 && uy >= 0.0 {
-            crossings.push(e.len() - 1);
-        }
-        prev = uy;
-        assert!(e.len() < 200_000, "no vibration found");
-    }
-    let mean = |a: usize, b: usize| e[a..b].iter().sum::<f64>() / (b - a) as f64;
-    let first = mean(crossings[0], crossings[1]);
-    let last = mean(crossings[8], crossings[9]);
-    let drift = (last - first).abs() / first;
+    });
+    let (first, last, drift) = sw.drift(0, 8);
     eprintln!(
         "tip deflection up to {peak:.4} m, bond strain up to {strain:.3}; energy first period {first:.6e}, ninth {last:.6e}: drift {drift:.2e}"
     );

@@ -11,7 +11,9 @@ target=x86_64-unknown-linux-gnu
 glibc=2.17
 scripts/setup_python.sh >&2
 # cargo-zigbuild runs zig through `python -m ziglang` of the first python on PATH: the venv's.
-PATH="$root/.venv/bin:$PATH" cargo zigbuild --quiet --profile fmu --lib --target "$target.$glibc" >&2
+# Without the `studies` feature: the FMU carries the product only (src/lib.rs).
+PATH="$root/.venv/bin:$PATH" cargo zigbuild --quiet --profile fmu --lib --no-default-features \
+    --features parallel --target "$target.$glibc" >&2
 lib="$root/target/$target/fmu/libmps_solid.so"
 [[ -f "$lib" ]] || { echo "build-fmu-lib: $lib was not built" >&2; exit 1; }
 echo "$lib"

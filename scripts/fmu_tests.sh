@@ -25,10 +25,10 @@ if (( ${#scenes[@]} == 0 )); then
     exit 1
 fi
 # The paper's scenes: packed, and modelDescription/<name>.xml must be up to date.
-cargo run --release --quiet --example pack_scenes -- --lib "$lib" --out "$out" \
+cargo run --release --quiet -- pack --lib "$lib" --out-dir "$out" \
     --check-xml modelDescription "${scenes[@]}"
 # The small test scenes of the FMI layer.
-cargo run --release --quiet --example pack_scenes -- --lib "$lib" --out "$out" tests/data/*.json
+cargo run --release --quiet -- pack --lib "$lib" --out-dir "$out" tests/data/*.json
 
 echo "== example C host"
 fmu="$out/$(basename "${scenes[-1]}" .json).fmu"

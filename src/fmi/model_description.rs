@@ -315,8 +315,8 @@ fn model_description_xml_dated(scene: &Scene, date: Option<&str>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cases::case1_scene;
     use crate::physics::ElasticModel;
+    use crate::studies::cases::case1_scene;
 
     #[test]
     fn guid_is_deterministic_and_scene_specific() {

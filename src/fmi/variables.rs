@@ -705,8 +705,8 @@ fn body(scene: &mut Scene, b: usize) -> Result<&mut crate::scene::Body, String> 
 #[cfg(test)]
 mod range_tests {
     use super::*;
-    use crate::cases::case1_scene;
     use crate::physics::ElasticModel;
+    use crate::studies::cases::case1_scene;
 
     #[test]
     fn set_parameter_refuses_what_validation_refuses() {
@@ -774,8 +774,8 @@ mod range_tests {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cases::{case2_scene, Support};
     use crate::physics::ElasticModel;
+    use crate::studies::cases::{case2_scene, Support};
 
     #[test]
     fn case2_table() {

@@ -3,6 +3,15 @@
 use super::dim::Vect;
 use super::grid::CellGrid;
 
+/// Whether two particles of one body at reference distance `r` are bonded: the one
+/// neighbourhood rule (weight > 0, i.e. 0 < r < re). A pair at exactly re (or coinciding) has
+/// zero weight and is no bond, since a zero weight marks a broken bond; |r0| = re to round-off
+/// would otherwise make the bond count, and so the surface flags, depend on where the body sits.
+#[inline]
+pub fn is_bond(r: f64, re: f64) -> bool {
+    weight(r, re) > 0.0
+}
+
 /// Weight function, Eq. (8).
 #[inline]
 pub fn weight(r: f64, re: f64) -> f64 {
@@ -71,13 +80,10 @@ impl<const D: usize> Bonds<D> {
             near.sort_unstable();
             for &j in &near {
                 let r0 = x0[j as usize] - x0[i];
-                // A pair at exactly re (or coinciding) has zero weight: it is no bond, since a
-                // zero weight marks a broken bond. |r0| = re to round-off would otherwise make
-                // the bond count, and so the surface flags, depend on where the body sits.
-                let w = weight(r0.norm(), re);
-                if w > 0.0 {
+                let r = r0.norm();
+                if is_bond(r, re) {
                     b.nbr.push(j);
-                    b.w0.push(w);
+                    b.w0.push(weight(r, re));
                     b.r0.push(r0);
                 }
             }
@@ -101,9 +107,9 @@ impl<const D: usize> Bonds<D> {
 }
 
 /// Distances of the points of the square/cubic lattice of spacing l0 (in `dimension` = 2 or 3
-/// dimensions) other than the origin within re, as the neighbour search counts them (r <= re,
-/// with room for round-off): the one enumeration behind the full-neighbourhood counts of the
-/// bond builder, the number density n0, the memory estimate and the resolution warnings.
+/// dimensions) that a particle at the origin is bonded to ([`is_bond`]): the one enumeration
+/// behind the full-neighbourhood counts of the bond builder, the number density n0, the memory
+/// estimate and the resolution warnings.
 pub fn lattice_distances(dimension: usize, l0: f64, re: f64) -> Vec<f64> {
     let m = (re / l0).ceil() as i64;
     let side = (2 * m + 1) as usize;
@@ -116,7 +122,8 @@ pub fn lattice_distances(dimension: usize, l0: f64, re: f64) -> Vec<f64> {
                 c /= side;
                 r2 += (k as f64 * l0).powi(2);
             }
-            (r2 > 0.0 && r2 <= re * re * (1.0 + 1e-9)).then(|| r2.sqrt())
+            let r = r2.sqrt();
+            is_bond(r, re).then_some(r)
         })
         .collect()
 }

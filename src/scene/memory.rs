@@ -224,7 +224,9 @@ mod tests {
     fn neighbours_of_the_lattice() {
         assert_eq!(lattice_neighbours(2, 2.1), 12);
         assert_eq!(lattice_neighbours(3, 2.1), 32);
-        assert_eq!(lattice_neighbours(2, 1.0), 4);
+        // a pair at exactly re is no bond (the one rule, physics::bonds::is_bond)
+        assert_eq!(lattice_neighbours(2, 1.0), 0);
+        assert_eq!(lattice_neighbours(2, 1.5), 8);
         assert_eq!(lattice_neighbours(3, 1.5), 18);
     }
 

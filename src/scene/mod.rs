@@ -2,6 +2,7 @@
 //! and load regions selected by region, gravity with the paper's ramp, probes, run settings.
 //! `Scene::validate` names the field and the problem for every bad input; `build` makes a World.
 mod build;
+mod fill;
 pub mod limits;
 pub mod memory;
 pub mod resolution;

@@ -8,10 +8,10 @@
 //!   nowhere thicker than 2 m particles (m = the lattice layers within re, 2 at re = 2.1 l0),
 //!   so every particle is near a surface and the operators' surface error governs the whole
 //!   body.
-use super::build::body_points;
+use super::fill::body_points;
 use super::limits::num;
 use super::{body_field, Scene};
-use crate::physics::bonds::weight;
+use crate::physics::bonds::is_bond;
 use crate::physics::dim::{sym_eigen, Mat};
 use crate::physics::grid::CellGrid;
 use crate::physics::{Dim, Space, Vect};
@@ -32,7 +32,7 @@ impl std::fmt::Display for SceneWarning {
 /// Lattice layers within re on each side of a particle: the largest m with w(m l0) > 0.
 fn layers(re_factor: f64) -> usize {
     (1..)
-        .take_while(|&m| weight(m as f64, re_factor) > 0.0)
+        .take_while(|&m| is_bond(m as f64, re_factor))
         .last()
         .unwrap_or(0)
 }
@@ -40,11 +40,7 @@ fn layers(re_factor: f64) -> usize {
 /// Bonds of a particle with a full neighbourhood on the lattice (counted as the bonds are:
 /// positive weight).
 fn full_neighbourhood<const D: usize>(re_factor: f64) -> usize {
-    // a pair exactly at re has weight 0: no bond
-    crate::physics::bonds::lattice_distances(D, 1.0, re_factor)
-        .into_iter()
-        .filter(|&r| weight(r, re_factor) > 0.0)
-        .count()
+    crate::physics::bonds::lattice_distances(D, 1.0, re_factor).len()
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
@@ -82,7 +78,7 @@ where
         let mut shape = Mat::<D>::zeros();
         grid.for_each_near(pts, p, re, |j| {
             let r = pts[j as usize] - p;
-            if weight(r.norm(), re) > 0.0 {
+            if is_bond(r.norm(), re) {
                 count += 1;
                 shape += r * r.transpose() / r.norm_squared();
             }

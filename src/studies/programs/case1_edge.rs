@@ -1,12 +1,12 @@
 //! Diagnostic (issue 7): case 1's lateral displacement u_x near the free end with the
 //! second-order operator, linearised static solution under full gravity: the particle values and
-//! the probe interpolation against the closed form. `cargo run --release --example case1_edge_probe`
-use mps_solid::cases::{case1_closed_form, case1_scene};
-use mps_solid::linear::{field_at, Linearised};
-use mps_solid::physics::{ElasticModel, Vect};
-use mps_solid::scene::Model;
+//! the probe interpolation against the closed form. `cargo run --release -- study case1_edge`
+use crate::physics::{ElasticModel, Vect};
+use crate::scene::Model;
+use crate::studies::cases::{case1_closed_form, case1_scene};
+use crate::studies::linear::{field_at, Linearised};
 
-fn main() {
+pub fn main(_args: Vec<String>) {
     for model in [ElasticModel::SecondOrder, ElasticModel::Corrected] {
         let s = case1_scene(0.025, model, None);
         let mut m = Model::<3>::build(&s).unwrap();

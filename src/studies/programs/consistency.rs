@@ -5,15 +5,15 @@
 //! operator's free end and side faces do not satisfy it (0.4-1 m g); the second-order operator's
 //! summation-by-parts closure (module `physics::sbp`) does, to ~1e-8 m g (its plain fits left
 //! -0.35 / +0.53 / -0.18 m g on the free end's layers). Printed by layer from the free end for
-//! the second-order and corrected operators. `cargo run --release --example consistency_probe`
-use mps_solid::cases::{case1_closed_field, case1_scene};
-use mps_solid::linear::Linearised;
-use mps_solid::physics::{ElasticModel, Vect};
-use mps_solid::scene::Model;
+//! the second-order and corrected operators. `cargo run --release -- study consistency`
+use crate::physics::{ElasticModel, Vect};
+use crate::scene::Model;
+use crate::studies::cases::{case1_closed_field, case1_scene};
+use crate::studies::linear::Linearised;
 
 const G: f64 = 9.81;
 
-fn main() {
+pub fn main(_args: Vec<String>) {
     for model in [ElasticModel::SecondOrder, ElasticModel::Corrected] {
         let s = case1_scene(0.025, model, None);
         let m = Model::<3>::build(&s).unwrap();

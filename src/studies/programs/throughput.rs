@@ -1,11 +1,11 @@
 //! Single-thread force-loop throughput of each elastic operator on case 2 (dp = 0.025, 300
 //! steps): directed bonds evaluated per second per force pass, the figure of BENCHMARKS.md.
-//! `cargo run --release --example throughput [corrected|second_order|paper] [repeats]`.
-use mps_solid::bench::single_thread_throughput;
-use mps_solid::physics::ElasticModel;
+//! `cargo run --release -- study throughput [corrected|second_order|paper] [repeats]`.
+use crate::physics::ElasticModel;
+use crate::studies::bench::single_thread_throughput;
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+pub fn main(args: Vec<String>) {
+    let args: Vec<String> = args.clone().into_iter().skip(1).collect();
     let models: Vec<(&str, ElasticModel)> = [
         ("corrected", ElasticModel::Corrected),
         ("second_order", ElasticModel::SecondOrder),

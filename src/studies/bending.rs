@@ -3,7 +3,7 @@
 //! strain, each with n particles through the thickness on one uniform lattice (the clamp is
 //! `ceil(re/l0)` wall layers behind the clamped face x = 0), and their linearised first
 //! frequency and static tip deflection (src/linear.rs) for the accuracy study.
-use crate::linear::{field_at, Linearised};
+use super::linear::{field_at, Linearised};
 use crate::physics::particles::FIX_AXIS;
 use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions, Vect};
 use crate::scene::Model;
@@ -320,9 +320,9 @@ pub fn free_free_plate_f1(n: usize, model: ElasticModel) -> Result<f64, SceneErr
 }
 
 /// reference/plate2d_fem.json (converged plane-strain FEM, tools/fem_bending.py).
-pub const PLATE_FEM_JSON: &str = include_str!("../reference/plate2d_fem.json");
+pub const PLATE_FEM_JSON: &str = include_str!("../../reference/plate2d_fem.json");
 /// reference/cantilever3d_fem.json (converged 3D FEM, tools/fem_bending.py).
-pub const CANTILEVER_FEM_JSON: &str = include_str!("../reference/cantilever3d_fem.json");
+pub const CANTILEVER_FEM_JSON: &str = include_str!("../../reference/cantilever3d_fem.json");
 
 /// Converged FEM first frequency (Hz) and static tip deflection under gravity G (m).
 #[derive(Clone, Copy, Debug)]
@@ -446,7 +446,7 @@ pub fn elastica_reference() -> Vec<ElasticaLevel> {
 /// reference/cantilever3d_nonlinear_fem.json (finite-strain 3D FEM with the solver's laws,
 /// tools/fem_large_deflection.py).
 pub const CANTILEVER_NONLINEAR_FEM_JSON: &str =
-    include_str!("../reference/cantilever3d_nonlinear_fem.json");
+    include_str!("../../reference/cantilever3d_nonlinear_fem.json");
 
 /// Tip displacement on the axis of the finite-strain 3D FEM (Hex27, Newton, Richardson over the
 /// meshes) of the cantilever under the dead load rho g, with the same strain energy law as the

@@ -4,12 +4,12 @@
 //! stretches, det F and the definiteness of the Saint Venant-Kirchhoff tangent over the last
 //! steps, and the spectrum of the assembled tangent stiffness.
 //!
-//! `cargo run --release --example fold_probe -- [safety] [t_end]`
-use mps_solid::physics::{Mat, MaterialLaw, Vect, World};
-use mps_solid::scene::Model;
+//! `cargo run --release -- study fold [safety] [t_end]`
+use crate::physics::{Mat, MaterialLaw, Vect, World};
+use crate::scene::Model;
 use nalgebra::{DMatrix, Matrix2, Matrix4};
 
-fn scene(safety: f64, law: Option<&str>) -> mps_solid::Scene {
+fn scene(safety: f64, law: Option<&str>) -> crate::Scene {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut v: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(root.join("tests/data/small2d.json")).unwrap(),
@@ -23,7 +23,7 @@ fn scene(safety: f64, law: Option<&str>) -> mps_solid::Scene {
     v["bodies"][0]["velocity"] = serde_json::json!([0.0, -1.0]);
     v["gravity"]["vector"] = serde_json::json!([0.0, -981.0]);
     v["solver"] = serde_json::json!({ "model": "corrected", "safety": safety });
-    mps_solid::Scene::from_json(&v.to_string()).unwrap()
+    crate::Scene::from_json(&v.to_string()).unwrap()
 }
 
 /// F_i of the corrected operator at displacements u.
@@ -124,8 +124,8 @@ fn tangent_spectrum(w: &World<2>, u: &[Vect<2>]) -> (Vec<f64>, DMatrix<f64>, Vec
     (ev.iter().map(|e| e.0).collect(), vecs, dofs)
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().collect();
+pub fn main(args: Vec<String>) {
+    let args: Vec<String> = args.clone().into_iter().collect();
     if let Ok(t) = std::env::var("ADVANCE") {
         advance_once(args[1].parse().unwrap(), t.parse().unwrap());
         return;
@@ -143,7 +143,7 @@ fn main() {
         w.max_dt(),
         w.len()
     );
-    let mut hist: std::collections::VecDeque<mps_solid::physics::world::WorldState<2>> =
+    let mut hist: std::collections::VecDeque<crate::physics::world::WorldState<2>> =
         Default::default();
     let mut minj = (f64::INFINITY, 0usize, 0.0);
     let mut minstretch = (f64::INFINITY, 0usize, 0.0);
@@ -267,7 +267,7 @@ fn main() {
         minstretch.0, minstretch.1, minstretch.2, minac.0, minac.1, minac.2
     );
     let bad = match &res {
-        Err(mps_solid::physics::SimError::BlowUp { particle, .. }) => *particle,
+        Err(crate::physics::SimError::BlowUp { particle, .. }) => *particle,
         _ => std::env::var("WATCH")
             .ok()
             .and_then(|s| s.parse().ok())

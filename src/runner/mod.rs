@@ -1,6 +1,8 @@
 //! Runs a scene to its end time: probe time series, timing figures, measured frequency and peak
 //! deflection. Shared by the command line, the case reports and the benchmark.
-use crate::analysis::{dominant_frequency, peak};
+pub mod analysis;
+
+use self::analysis::{dominant_frequency, peak};
 use crate::scene::limits::num;
 use crate::scene::{axis_index, Scene, SceneWarning};
 use crate::sim::Simulation;

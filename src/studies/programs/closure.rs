@@ -1,16 +1,16 @@
 //! Diagnostic (issue 7): the summation-by-parts closure of the second-order operator's free
 //! faces (module `physics::sbp`) for the paper's cases 1 and 2 and the bending benchmarks: per
 //! body the solve's iterations, residuals, largest correction and wall time, or why a body
-//! keeps its plain fits. `cargo run --release --example closure_report`; `-- cube N` reports a
+//! keeps its plain fits. `cargo run --release -- study closure`; `-- cube N` reports a
 //! free cube of N^3 particles instead (the bulky body whose build is the slowest).
-use mps_solid::bending::{cantilever3d_scene, plate2d_scene};
-use mps_solid::cases::{case1_scene, case2_scene, Support};
-use mps_solid::physics::ElasticModel;
-use mps_solid::scene::{Model, Scene};
+use crate::physics::ElasticModel;
+use crate::scene::{Model, Scene};
+use crate::studies::bending::{cantilever3d_scene, plate2d_scene};
+use crate::studies::cases::{case1_scene, case2_scene, Support};
 
 fn report<const D: usize>(name: &str, s: &Scene)
 where
-    mps_solid::physics::Space: mps_solid::physics::Dim<D>,
+    crate::physics::Space: crate::physics::Dim<D>,
 {
     let m = Model::<D>::build(s).unwrap();
     for (k, r) in m.world.closure.iter().enumerate() {
@@ -39,8 +39,8 @@ fn cube_scene(n: usize) -> Scene {
     .expect("cube scene")
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+pub fn main(args: Vec<String>) {
+    let args: Vec<String> = args.clone().into_iter().skip(1).collect();
     if args.first().map(String::as_str) == Some("cube") {
         let n = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(20);
         let t = std::time::Instant::now();

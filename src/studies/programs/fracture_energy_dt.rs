@@ -4,9 +4,9 @@
 //! step; prints the energy (kinetic + strain + contact) change summed over the steps in which
 //! bonds broke and over the others, the largest rise, the energy the breaks released and the
 //! particles whose re-fit at a break was limited, per model and velocity.
-//! `cargo run --release --example fracture_energy_dt -- [factor...]` (default 1 0.5 0.25).
-use mps_solid::physics::World;
-use mps_solid::scene::{Model, Scene};
+//! `cargo run --release -- study fracture_energy_dt [factor...]` (default 1 0.5 0.25).
+use crate::physics::World;
+use crate::scene::{Model, Scene};
 use serde_json::Value;
 
 fn small2d(velocity: [f64; 2], model: &str) -> Result<World<2>, String> {
@@ -29,8 +29,10 @@ fn total(w: &World<2>) -> f64 {
     w.kinetic_energy() + w.strain_energy() + w.contact_energy()
 }
 
-fn main() {
-    let factors: Vec<f64> = std::env::args()
+pub fn main(args: Vec<String>) {
+    let factors: Vec<f64> = args
+        .clone()
+        .into_iter()
         .skip(1)
         .filter_map(|a| a.parse().ok())
         .collect();

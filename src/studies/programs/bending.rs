@@ -1,12 +1,12 @@
 //! Accuracy study of the elastic operators in bending (issue 7): linearised first frequency and
 //! static tip deflection of the 2D GMS plate and the slender 3D cantilever against n particles
-//! through the thickness. `cargo run --release --example bending_study -- [2d|3d] [n...]`;
+//! through the thickness. `cargo run --release -- study bending [2d|3d] [n...]`;
 //! environment LAW sets the material law (`saint_venant_kirchhoff`, `neo_hookean`).
-use mps_solid::bending::{cantilever3d_scene, linear_bending, plate2d_scene};
-use mps_solid::physics::ElasticModel;
+use crate::physics::ElasticModel;
+use crate::studies::bending::{cantilever3d_scene, linear_bending, plate2d_scene};
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+pub fn main(args: Vec<String>) {
+    let args: Vec<String> = args.clone().into_iter().skip(1).collect();
     let dim = args.first().map(|s| s.as_str()).unwrap_or("2d").to_string();
     let ns: Vec<usize> = args.iter().skip(1).filter_map(|s| s.parse().ok()).collect();
     let ns = if ns.is_empty() { vec![4, 8, 16] } else { ns };
@@ -28,7 +28,7 @@ fn main() {
             ] {
                 println!(
                     "free-free plate {name} n = {n}: f1 = {:.6} Hz",
-                    mps_solid::bending::free_free_plate_f1(n, model).unwrap()
+                    crate::studies::bending::free_free_plate_f1(n, model).unwrap()
                 );
             }
         }
@@ -90,7 +90,7 @@ fn main() {
 /// Cost of one force evaluation per model (TIME=1): cantilever3d with n across.
 #[allow(dead_code)]
 pub fn time_forces(n: usize) {
-    use mps_solid::scene::Model;
+    use crate::scene::Model;
     for model in [
         ElasticModel::SecondOrder,
         ElasticModel::Corrected,

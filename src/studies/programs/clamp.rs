@@ -1,26 +1,29 @@
 //! Diagnostic: a clamped bar under a body force along its axis (nu = 0): the exact
 //! displacement u_x = (rho g / E)(L x - x^2 / 2) is quadratic, so a quadratic-consistent
 //! operator must reproduce it to round-off. Prints the computed against the exact field.
-use mps_solid::bending::plate2d_scene;
-use mps_solid::linear::{field_at, Linearised};
-use mps_solid::physics::{ElasticModel, Vect};
-use mps_solid::scene::Model;
+use crate::physics::{ElasticModel, Vect};
+use crate::scene::Model;
+use crate::studies::bending::plate2d_scene;
+use crate::studies::linear::{field_at, Linearised};
 
-fn main() {
+pub fn main(args: Vec<String>) {
     if std::env::var("CASE2").is_ok() {
         case2_clamps();
         return;
     }
     if std::env::var("COLUMNS_RESIDUAL").is_ok() {
         residual_by_column(
-            std::env::args()
+            args.clone()
+                .into_iter()
                 .nth(1)
                 .and_then(|s| s.parse().ok())
                 .unwrap_or(4),
         );
         return;
     }
-    let n: usize = std::env::args()
+    let n: usize = args
+        .clone()
+        .into_iter()
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(4);
@@ -90,8 +93,8 @@ pub fn residual_by_column(n: usize) {
 /// vertices (as shipped) and on the cell centres: f1 and static max deflection against the FEM.
 #[allow(dead_code)]
 pub fn case2_clamps() {
-    use mps_solid::bending::linear_bending;
-    use mps_solid::cases::{case2_scene, Support};
+    use crate::studies::bending::linear_bending;
+    use crate::studies::cases::{case2_scene, Support};
     let (f_ref, u_ref) = (10.55357, -0.00276809);
     for model in [ElasticModel::Corrected, ElasticModel::SecondOrder] {
         for vertex in [false, true] {

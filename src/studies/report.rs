@@ -1,13 +1,13 @@
 //! Reports of the paper's cases 1 and 2: each result beside its references (closed form,
 //! Euler-Bernoulli, Timoshenko, the paper's Table 1, the 3D FEM references in
 //! reference/case1_fem.json and reference/case2_fem.json), as text tables or JSON.
-use crate::cases::*;
+use super::cases::*;
 use crate::physics::ElasticModel;
 use crate::runner::{run_scene, RunResult};
 use serde::Serialize;
 
 /// The 3D FEM reference of case 2, computed by tools/fem_reference.py (see reference/README.md).
-pub const CASE2_FEM_JSON: &str = include_str!("../reference/case2_fem.json");
+pub const CASE2_FEM_JSON: &str = include_str!("../../reference/case2_fem.json");
 
 /// Converged 3D FEM numbers of case 2.
 #[derive(Clone, Debug, Serialize)]
@@ -41,7 +41,7 @@ pub fn fem_reference() -> FemReference {
 }
 
 /// The 3D FEM reference of case 1 (the clamped column), computed by tools/fem_column.py.
-pub const CASE1_FEM_JSON: &str = include_str!("../reference/case1_fem.json");
+pub const CASE1_FEM_JSON: &str = include_str!("../../reference/case1_fem.json");
 
 /// Converged FEM displacements (u_x, u_z) of case 1 on the paper's line x = 0.1 m, y = 0, at
 /// the distances `CASE1_STATIONS` from the support (m).

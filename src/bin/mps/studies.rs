@@ -1,62 +1,18 @@
-//! Command line: run a scene, run the paper's cases against their references, write the scene
-//! files, pack an FMU.
-use clap::{Parser, Subcommand, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
-use mps_solid::cases::{case1_scene, case2_scene, Support};
+//! The study commands of the command line (cargo feature `studies`): the paper's cases against
+//! their references (`mps cases`, the main job), the benchmark, case 3 and its Figure 9, and the
+//! scene files of scenes/.
+use super::{progress, Model};
+use clap::Subcommand;
 use mps_solid::physics::ElasticModel;
-use mps_solid::report;
-use mps_solid::runner::{energy_csv, run_scene_with, series_csv, RunEvent, RunOptions};
 use mps_solid::scene::limits::num;
+use mps_solid::studies::cases::{case1_scene, case2_scene, Support};
+use mps_solid::studies::report;
 use mps_solid::Scene;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-#[derive(Parser)]
-#[command(
-    name = "mps",
-    version,
-    about = "MPS particle solver for elastic solids (Amaro Junior, Cheng & Tsukamoto)"
-)]
-struct Cli {
-    #[command(subcommand)]
-    cmd: Cmd,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum Model {
-    SecondOrder,
-    Corrected,
-    Paper,
-    PaperLocal,
-}
-
-impl From<Model> for ElasticModel {
-    fn from(m: Model) -> Self {
-        match m {
-            Model::SecondOrder => ElasticModel::SecondOrder,
-            Model::Corrected => ElasticModel::Corrected,
-            Model::Paper => ElasticModel::Paper,
-            Model::PaperLocal => ElasticModel::PaperLocal,
-        }
-    }
-}
-
 #[derive(Subcommand)]
-enum Cmd {
-    /// Run a scene file (JSON or TOML): probe series as CSV, a summary, optionally JSON.
-    Run {
-        scene: PathBuf,
-        /// Directory for probes.csv and summary.json (and energy.csv).
-        #[arg(long, default_value = "out")]
-        out: PathBuf,
-        /// Also write energy.csv: kinetic, strain and contact energy and their sum at every
-        /// output sample (a serial pass over the bonds per sample).
-        #[arg(long)]
-        energy: bool,
-        /// Print the result (including the series) as JSON on stdout.
-        #[arg(long)]
-        json: bool,
-    },
+pub enum StudyCmd {
     /// Run the paper's three cases and print each result beside its references.
     Cases {
         /// Cases to run, repeatable (default: 1, 2 and 3).
@@ -104,7 +60,7 @@ enum Cmd {
     /// Run the paper's case 3 (cube hits a block; contact and fracture), both variants by default.
     Case3 {
         /// Particle spacing (m); the paper uses 0.05.
-        #[arg(long, default_value_t = mps_solid::case3::CASE3_DP)]
+        #[arg(long, default_value_t = mps_solid::studies::case3::CASE3_DP)]
         dp: f64,
         /// End time (s) (default 1.7, or the end_time of --scene).
         #[arg(long)]
@@ -135,125 +91,29 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
-    /// Pack a scene into an FMI 2.0 co-simulation FMU.
-    Pack {
-        scene: PathBuf,
-        /// Output file (default: <scene name>.fmu).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// The built library (default: libmps_solid.so next to this program).
-        #[arg(long)]
-        lib: Option<PathBuf>,
-    },
     /// Write the paper's scene files (as used under scenes/) into a directory.
     Scenes {
         #[arg(default_value = "scenes")]
         dir: PathBuf,
     },
+    /// Run one of the accuracy studies and diagnostics kept for their figures (docs/studies.md);
+    /// `--list` names them.
+    Study {
+        /// The study's name (see --list).
+        #[arg(required_unless_present = "list")]
+        name: Option<String>,
+        /// List the studies with a line each.
+        #[arg(long)]
+        list: bool,
+        /// Arguments of the study (as its doc comment describes).
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
 }
 
-fn progress(len: f64, label: &str) -> ProgressBar {
-    let pb = ProgressBar::new((len * 1e6) as u64);
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{msg:>24} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}",
-        )
-        .unwrap()
-        .progress_chars("=> "),
-    );
-    pb.set_message(label.to_string());
-    pb
-}
-
-fn main() -> ExitCode {
-    match run(Cli::parse()) {
-        Ok(code) => code,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn run(cli: Cli) -> Result<ExitCode, String> {
-    match cli.cmd {
-        Cmd::Run {
-            scene,
-            out,
-            energy,
-            json,
-        } => {
-            let sc = Scene::load(&scene).map_err(|e| e.to_string())?;
-            // The output files are opened before the run, so an unusable --out fails now.
-            std::fs::create_dir_all(&out)
-                .map_err(|e| format!("cannot create the directory {}: {e}", out.display()))?;
-            let csv = out.join("probes.csv");
-            let summary_path = out.join("summary.json");
-            let energy_path = out.join("energy.csv");
-            let open = |p: &std::path::Path| {
-                std::fs::File::create(p).map_err(|e| format!("cannot write {}: {e}", p.display()))
-            };
-            let (mut csv_file, mut summary_file) = (open(&csv)?, open(&summary_path)?);
-            let mut energy_file = if energy {
-                Some(open(&energy_path)?)
-            } else {
-                None
-            };
-            let pb = progress(sc.end_time, &sc.name);
-            let r = run_scene_with(&sc, RunOptions { energy }, |e| match e {
-                RunEvent::Warning(w) => pb.suspend(|| eprintln!("warning: {w}")),
-                RunEvent::Sample(t) => pb.set_position((t * 1e6) as u64),
-            });
-            pb.finish_and_clear();
-            let r = r.inspect_err(|_| {
-                // Leave no empty output files behind a refused run.
-                let _ = std::fs::remove_file(&csv);
-                let _ = std::fs::remove_file(&summary_path);
-                if energy {
-                    let _ = std::fs::remove_file(&energy_path);
-                }
-            })?;
-            use std::io::Write;
-            csv_file
-                .write_all(series_csv(&r.series, r.dimension).as_bytes())
-                .map_err(|e| format!("cannot write {}: {e}", csv.display()))?;
-            if let Some(f) = &mut energy_file {
-                f.write_all(energy_csv(&r.series).as_bytes())
-                    .map_err(|e| format!("cannot write {}: {e}", energy_path.display()))?;
-            }
-            let mut summary = serde_json::to_value(&r).expect("serialisable");
-            summary.as_object_mut().expect("object").remove("series");
-            summary_file
-                .write_all(serde_json::to_string_pretty(&summary).unwrap().as_bytes())
-                .map_err(|e| format!("cannot write {}: {e}", summary_path.display()))?;
-            if json {
-                println!("{}", serde_json::to_string(&r).unwrap());
-            } else {
-                println!(
-                    "{}: {} particles, {} bonds, {} steps of {:.3e} s (critical {:.3e} s) to t = {} s in {:.2} s ({:.3e} pair-updates/s)",
-                    r.scene, r.particles, r.bonds, r.steps, r.dt, r.critical_dt, r.end_time, r.wall_time_s, r.pair_updates_per_s
-                );
-                for (name, u) in &r.final_displacement {
-                    println!(
-                        "  probe {name}: u = [{:.6e}, {:.6e}, {:.6e}] m",
-                        u[0], u[1], u[2]
-                    );
-                }
-                if let (Some(f), Some(p)) = (r.frequency_hz, r.peak_m) {
-                    println!("  frequency {f:.4} Hz, peak {p:.6e} m");
-                }
-                println!("  series written to {}", csv.display());
-                if energy {
-                    println!("  energies written to {}", energy_path.display());
-                }
-            }
-            if let Some(e) = &r.error {
-                eprintln!("error: the run stopped early: {e}");
-                return Ok(ExitCode::FAILURE);
-            }
-            Ok(ExitCode::SUCCESS)
-        }
-        Cmd::Cases {
+pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
+    match cmd {
+        StudyCmd::Cases {
             case,
             dp,
             model,
@@ -334,13 +194,13 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 if !json {
                     println!(
                         "Case 3: cube hits block, dp = {} m, model Corrected, to {} s: the events of the paper's Figure 9 against its times",
-                        mps_solid::case3::CASE3_DP,
+                        mps_solid::studies::case3::CASE3_DP,
                         num(case3_end)
                     );
                 }
                 for fc in [true, false] {
-                    let mut scene = mps_solid::case3::case3_scene(
-                        mps_solid::case3::CASE3_DP,
+                    let mut scene = mps_solid::studies::case3::case3_scene(
+                        mps_solid::studies::case3::CASE3_DP,
                         fc,
                         ElasticModel::Corrected,
                     );
@@ -351,13 +211,13 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     let label = format!("case 3 {}", scene.name);
                     let r = scene.validate().map_err(|e| e.to_string()).and_then(|()| {
                         let pb = progress(case3_end, &label);
-                        let r = mps_solid::case3::case3_report_with(
+                        let r = mps_solid::studies::case3::case3_report_with(
                             &scene,
                             case3_end,
                             0.01,
                             0.0025,
                             |sim, kind| {
-                                if kind == mps_solid::case3::CheckPoint::Regular {
+                                if kind == mps_solid::studies::case3::CheckPoint::Regular {
                                     pb.set_position((sim.time() * 1e6) as u64);
                                 }
                             },
@@ -372,7 +232,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     }) {
                         Ok((r, v)) => {
                             if !json {
-                                println!("{}", mps_solid::case3::case3_text(&r));
+                                println!("{}", mps_solid::studies::case3::case3_text(&r));
                             }
                             out.push(v);
                         }
@@ -392,14 +252,14 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 ExitCode::SUCCESS
             })
         }
-        Cmd::Bench {
+        StudyCmd::Bench {
             quick,
             out,
             bending,
             plot,
             fine,
         } => {
-            use mps_solid::bench;
+            use mps_solid::studies::bench;
             let front = bench::bending_front(quick, fine)?;
             let front_md = bench::bending_markdown(&front, rayon::current_num_threads());
             if let Some(p) = &plot {
@@ -460,7 +320,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        Cmd::Case3 {
+        StudyCmd::Case3 {
             dp,
             end,
             scene: scene_file,
@@ -471,7 +331,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             figure9_name,
             json,
         } => {
-            use mps_solid::case3::{
+            use mps_solid::studies::case3::{
                 case3_report_with, case3_scene, case3_text, CheckPoint, Figure9Capture,
                 Figure9Column,
             };
@@ -606,7 +466,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 reports.push(r);
             }
             if let Some(dir) = &figure9 {
-                let files = mps_solid::case3::write_figure9(
+                let files = mps_solid::studies::case3::write_figure9(
                     dir,
                     &figure9_name,
                     &title,
@@ -614,7 +474,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     &body_names,
                     &columns,
                     mps_solid::output::Camera::default(),
-                    Some(&mps_solid::case3::figure9_foot()),
+                    Some(&mps_solid::studies::case3::figure9_foot()),
                 )?;
                 eprintln!(
                     "wrote Figure 9 ({} images) into {}: {}",
@@ -628,29 +488,21 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        Cmd::Pack { scene, out, lib } => {
-            let sc = Scene::load(&scene).map_err(|e| e.to_string())?;
-            let lib = match lib {
-                Some(l) => l,
-                None => std::env::current_exe()
-                    .map_err(|e| format!("cannot locate this program (for --lib): {e}"))?
-                    .with_file_name("libmps_solid.so"),
-            };
-            let out = out.unwrap_or_else(|| PathBuf::from(format!("{}.fmu", sc.name)));
-            if out == scene || mps_solid::fmi::pack::same_file(&out, &scene) {
-                return Err(format!(
-                    "--out {} is the scene file itself; choose another output",
-                    out.display()
-                ));
+        StudyCmd::Study { name, list, args } => {
+            use mps_solid::studies::programs;
+            if list {
+                for (n, d) in programs::PROGRAMS {
+                    println!("{n:<20} {d}");
+                }
+                return Ok(ExitCode::SUCCESS);
             }
-            for w in sc.warnings() {
-                eprintln!("warning: {w}");
-            }
-            mps_solid::fmi::pack::pack_fmu(&sc, &lib, &out)?;
-            println!("wrote {}", out.display());
+            let name = name.expect("clap requires a name without --list");
+            let mut argv = vec![format!("mps study {name}")];
+            argv.extend(args);
+            programs::run(&name, argv)?;
             Ok(ExitCode::SUCCESS)
         }
-        Cmd::Scenes { dir } => {
+        StudyCmd::Scenes { dir } => {
             std::fs::create_dir_all(&dir)
                 .map_err(|e| format!("cannot create the directory {}: {e}", dir.display()))?;
             for sc in paper_scenes() {
@@ -667,8 +519,8 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
 /// The scene files of scenes/: the paper's cases at the paper's spacing and the bending
 /// benchmarks of issue 7.
 fn paper_scenes() -> Vec<Scene> {
-    let mut v = mps_solid::cases::paper_scenes();
-    v.extend(mps_solid::bending::benchmark_scenes());
+    let mut v = mps_solid::studies::cases::paper_scenes();
+    v.extend(mps_solid::studies::bending::benchmark_scenes());
     v
 }
 

@@ -330,7 +330,7 @@ pub const PAPER_TABLE1: [(&str, f64, f64, f64); 3] = [
 /// both variants of case 3 at its dp = 0.05 m, with the automatic time step and the corrected
 /// operator.
 pub fn paper_scenes() -> Vec<Scene> {
-    use crate::case3::case3_scene;
+    use super::case3::case3_scene;
     vec![
         case1_scene(0.025, ElasticModel::Corrected, None),
         case2_scene(0.025, ElasticModel::Corrected, None, Support::Face),

@@ -1,28 +1,28 @@
 //! Large deflection of the slender 3D cantilever (issue 7): the nonlinear static tip under
 //! gravity at the three load levels of the elastica reference (tip deflection 30 / 45 / 60 % of
-//! L), found by dynamic relaxation (`mps_solid::bending::elastica_static`), against the
+//! L), found by dynamic relaxation (`crate::studies::bending::elastica_static`), against the
 //! elastica scaled by the linear 3D FEM / Euler-Bernoulli ratio, the plain elastica, and the
 //! finite-strain 3D FEM with the same material law (reference/cantilever3d_nonlinear_fem.json,
 //! the one without the elastica's simplifications). Prints a markdown table.
 //!
-//! `cargo run --release --example elastica_study -- [ops] [ns] [levels]`, e.g.
+//! `cargo run --release -- study elastica [ops] [ns] [levels]`, e.g.
 //! `-- second_order,corrected 4,8 1,2,3` (levels 1-based; level 0 is a check of the relaxation:
 //! g = 9.81 against the linear 3D FEM tip, where the nonlinear and the linearised static
 //! solutions agree, so its error is the linear one of BENCHMARKS.md). Environment: ZETA, RAMP (periods),
 //! TOL (in L f1), MAXP (periods) override the relaxation settings; LAW the material law
 //! (`saint_venant_kirchhoff`, `neo_hookean`).
-use mps_solid::bending::{
+use crate::physics::ElasticModel;
+use crate::studies::bending::{
     cantilever_reference, elastica_reference, elastica_static, nonlinear_fem_reference,
     ElasticaLevel, RelaxOptions, CANTILEVER_LENGTH, G,
 };
-use mps_solid::physics::ElasticModel;
 
 fn env(k: &str) -> Option<f64> {
     std::env::var(k).ok().and_then(|s| s.parse().ok())
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+pub fn main(args: Vec<String>) {
+    let args: Vec<String> = args.clone().into_iter().skip(1).collect();
     let ops: Vec<&str> = args
         .first()
         .map(|s| s.split(',').collect())

@@ -1,15 +1,15 @@
 //! Mirror faces against the grip (issue 7): the second-order operator on the axial bar (exact
 //! quadratic field), the GMS plate, the slender cantilever and case 2, with its builders'
 //! clamp (mirror faces) and with the earlier grip (a face layer on the face, walls behind it,
-//! `GRIP=1`). `cargo run --release --example ghost_probe -- [bar|plate|cant|case2] n...`
+//! `GRIP=1`). `cargo run --release -- study ghost [bar|plate|cant|case2] n...`
 //! (case2: dp = 0.1 / n).
-use mps_solid::bending::{
+use crate::physics::{ElasticModel, Vect};
+use crate::scene::{Model, Scene};
+use crate::studies::bending::{
     cantilever3d_scene, cantilever_reference, linear_bending, plate2d_scene, plate_reference,
 };
-use mps_solid::cases::{case2_scene, Support};
-use mps_solid::linear::{field_at, Linearised};
-use mps_solid::physics::{ElasticModel, Vect};
-use mps_solid::scene::{Model, Scene};
+use crate::studies::cases::{case2_scene, Support};
+use crate::studies::linear::{field_at, Linearised};
 
 /// The face-layer grip of the other operators, with the second-order model.
 fn with_model(grip: bool, build: impl Fn(ElasticModel) -> Scene) -> Scene {
@@ -21,8 +21,8 @@ fn with_model(grip: bool, build: impl Fn(ElasticModel) -> Scene) -> Scene {
     s
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+pub fn main(args: Vec<String>) {
+    let args: Vec<String> = args.clone().into_iter().skip(1).collect();
     let what = args.first().cloned().unwrap_or("plate".into());
     let ns: Vec<usize> = args.iter().skip(1).filter_map(|s| s.parse().ok()).collect();
     let ns = if ns.is_empty() { vec![4, 8] } else { ns };

@@ -1,17 +1,19 @@
 //! First torsion frequency of the slender 3D cantilever (issue 7: near incompressibility) for
 //! the operators without particle rotations, at nu = 0.3 and 0.499, against the FEM
 //! (reference/cantilever3d_fem.json; at nu = 0.499 the mixed Q2-P1disc element).
-//! `cargo run --release --example torsion_study -- [n...]`; environment: MODELS=second_order,
+//! `cargo run --release -- study torsion [n...]`; environment: MODELS=second_order,
 //! corrected (paper on request, time domain only); NU=0.3,0.499; METHODS=linear,time (default linear; time: release from a twist
 //! rate, timed over PERIODS periods, default 3).
-use mps_solid::bending::{
+use crate::physics::ElasticModel;
+use crate::studies::bending::{
     cantilever3d_scene, cantilever_torsion_reference, torsion_frequency, torsion_frequency_time,
     torsion_frequency_with,
 };
-use mps_solid::physics::ElasticModel;
 
-fn main() {
-    let ns: Vec<usize> = std::env::args()
+pub fn main(args: Vec<String>) {
+    let ns: Vec<usize> = args
+        .clone()
+        .into_iter()
         .skip(1)
         .filter_map(|s| s.parse().ok())
         .collect();

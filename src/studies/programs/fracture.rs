@@ -1,13 +1,15 @@
 //! Diagnostic (issue 7): why case 3 breaks its first bond at 0.128 s with the second-order
 //! operator and at 0.3425 s with the corrected one. Prints, every 10 ms, the largest bond strain
 //! and where it sits (position, surface flag, body), and the kinetic and strain energy, for both
-//! operators. `cargo run --release --example fracture_probe [end_time]`
-use mps_solid::case3::case3_scene;
-use mps_solid::physics::ElasticModel;
-use mps_solid::scene::Model;
+//! operators. `cargo run --release -- study fracture [end_time]`
+use crate::physics::ElasticModel;
+use crate::scene::Model;
+use crate::studies::case3::case3_scene;
 
-fn main() {
-    let end: f64 = std::env::args()
+pub fn main(args: Vec<String>) {
+    let end: f64 = args
+        .clone()
+        .into_iter()
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(0.16);

@@ -1,9 +1,9 @@
 //! The benchmark: run time against error for cases 1 and 2 over particle spacings, with the
 //! automatic step and the paper's fixed step; single-thread force-loop throughput; the stable
 //! step probed at multiples of the bound. Prints a Markdown table (kept in BENCHMARKS.md).
-use crate::cases::{case2_scene, Support};
+use super::cases::{case2_scene, Support};
+use super::report;
 use crate::physics::ElasticModel;
-use crate::report;
 use crate::sim::Simulation;
 use std::fmt::Write;
 use std::time::Instant;
@@ -225,7 +225,7 @@ pub fn fmu_overhead() -> Result<(f64, f64), String> {
 
 /// Case 3 with contact detection between fractured surfaces to 1.7 s at dp = 0.05: a row.
 pub fn case3_row() -> Result<Row, String> {
-    use crate::case3::{case3_report, case3_scene};
+    use super::case3::{case3_report, case3_scene};
     let scene = case3_scene(0.05, true, ElasticModel::Corrected);
     let sim = Simulation::new(&scene).map_err(|e| e.to_string())?;
     let bonds = sim.bonds();
@@ -286,7 +286,7 @@ impl BendRow {
 /// 4 and 8 (`quick`: the plate at 4 and 8 only; `fine`: also the cantilever at 16 with
 /// second_order, whose linearisation alone takes about 20 minutes on 2 cores).
 pub fn bending_front(quick: bool, fine: bool) -> Result<Vec<BendRow>, String> {
-    use crate::bending::{
+    use super::bending::{
         cantilever3d_scene, cantilever_reference, linear_bending, plate2d_scene, plate_reference,
     };
     let mut cases: Vec<(&str, usize)> = vec![("plate2d", 4), ("plate2d", 8)];

@@ -1,6 +1,6 @@
 //! Invariants of the particle model: rigid motions produce no force, uniform strain produces no
 //! force inside the body, momentum is conserved, the stable step is right, threads do not matter.
-mod common;
+use crate::common;
 use common::*;
 use mps_solid::physics::{Dim, ElasticModel, Mat, Space, Vect, World};
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};
@@ -108,6 +108,7 @@ where
 }
 
 #[test]
+#[ignore = "slow (35 s on a loaded 2-core machine): the full test command runs it"]
 fn uniform_strain_produces_no_interior_force() {
     uniform_strain_check::<3>([13, 13, 13]);
     uniform_strain_check::<2>([15, 15, 1]);

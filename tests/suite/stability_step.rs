@@ -1,6 +1,6 @@
 //! The stable step holds (issue 7): safety 1 is stable in 3D, explicit damping has its own limit
 //! that the automatic step respects, and a fast rigid motion is not mistaken for a blow-up.
-mod common;
+use crate::common;
 use common::{block, Rng};
 use mps_solid::physics::boundary::GravityLaw;
 use mps_solid::physics::integrate::critical_step;
@@ -78,6 +78,7 @@ where
 }
 
 #[test]
+#[ignore = "slow (7 s on a loaded 2-core machine): the full test command runs it"]
 fn cantilever_3d_is_stable_at_safety_one() {
     // Before: the measured critical step was ~0.5 % optimistic in 3D, so safety 1 grew the
     // highest mode by ~1.1x per step and blew up within a few hundred steps.
@@ -187,6 +188,7 @@ fn soft_free_body_translating_fast_runs() {
 }
 
 #[test]
+#[ignore = "slow (29 s on a loaded 2-core machine): the full test command runs it"]
 fn cantilever_deflected_to_half_its_length_is_stable_and_the_bound_follows_it() {
     // 18 x 4 x 4 particles, 2 layers clamped, sudden gravity of 1000 m/s^2 and damping 30 1/s:
     // the tip swings to 0.7-0.8 of the free length and settles near 0.45-0.5. Every step takes
@@ -258,6 +260,7 @@ fn small2d_variant(young: f64, poisson: f64, model: &str, g_scale: f64) -> mps_s
 }
 
 #[test]
+#[ignore = "slow (32 s on a loaded 2-core machine): the full test command runs it"]
 fn soft_strips_collapsing_under_load_run_at_the_default_safety() {
     // Found by a random scan of 40 small2d/small3d variants (material, damping, speed, fracture,
     // gravity): valid scenes that blew up at safety 0.8 or 1.0 and ran at 0.2. The strips sag
@@ -312,7 +315,7 @@ fn thrown_strip_folds_at_the_default_safety_with_the_neo_hookean_law() {
     // particles turn inside out (up to 33 of 256, det F down to -1.7, at 0.75 as at 0.8), and
     // the tip whips at 80-90 m/s, faster than the waves (39 m/s); the blow-up was a crushed and
     // rebounding tip corner. The step bound was not the cause: dt omega_max stayed at 1.52-1.57
-    // of the allowed 2 in the last steps (examples/fold_probe.rs). With the neo-Hookean law,
+    // of the allowed 2 in the last steps (src/studies/programs/fold.rs). With the neo-Hookean law,
     // whose energy grows without bound as a particle collapses, no particle gets below det F =
     // 0.09, the largest kick of a step is 0.13 l0 over the first 0.2 s (0.2-0.4 l0 with SVK,
     // 0.5 l0 is a blow-up) and 0.28 l0 over the run, which goes to the end at 0.8 (0.6 and

@@ -4,7 +4,7 @@
 //! held layer sits half a spacing from the first free layer, so a broken bond of that pair started
 //! at 0.5 l0 inside the contact range and the contact spring added ~60 J per broken pair
 //! (547 J -> 884 J kinetic + strain in 0.5 ms).
-mod common;
+use crate::common;
 use mps_solid::physics::World;
 use mps_solid::scene::{Model, Scene};
 use serde_json::Value;
@@ -99,7 +99,7 @@ fn fracture_on_impact_creates_no_energy() {
 /// (`ElasticOperator::retained`: a particle whose re-fit would hold more than it held just
 /// before the break keeps only the share that holds the same), corrected at most +0.97 % in a
 /// step, second_order +0.68 % in a step and +0.38 % in the 10-step mean at 0.25 x (v = -y).
-/// With the share (`examples/fracture_energy_dt.rs`): the largest single step +0.24 %
+/// With the share (`mps study fracture_energy_dt`): the largest single step +0.24 %
 /// (corrected, v = -x, 0.25 x), second_order at most +0.24 %. Bounds as in the test above.
 #[test]
 fn fracture_creates_no_energy_at_any_step() {

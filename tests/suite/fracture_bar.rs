@@ -90,6 +90,7 @@ fn bar_damped(
 }
 
 #[test]
+#[ignore = "slow (9 s on a loaded 2-core machine): the full test command runs it"]
 fn bar_breaks_at_the_expected_elongation_and_not_before() {
     // Right grip pulled along x at 0.25 m/s (quasi-static: the wave crosses the bar in 0.2 ms,
     // the pull lasts ~40 ms; damping 50 1/s settles the start-up wave). The expected elongation

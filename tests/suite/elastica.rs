@@ -4,11 +4,11 @@
 //! found by dynamic relaxation (`bending::elastica_static`). The cheapest meaningful case:
 //! `second_order` at 4 particles across, the 30 % level (g = 216 m/s^2), 13-20 s in release on
 //! one loaded core, for each of the two material laws.
-use mps_solid::bending::{
+use mps_solid::physics::{ElasticModel, MaterialLaw};
+use mps_solid::studies::bending::{
     cantilever_reference, elastica_reference, elastica_static, nonlinear_fem_reference,
     ElasticaResult, RelaxOptions, G,
 };
-use mps_solid::physics::{ElasticModel, MaterialLaw};
 
 /// Stable (no blow-up, the velocity tolerance reached) and within the tolerance of the
 /// shear-corrected elastica (the elastica times the linear 3D FEM / Euler-Bernoulli ratio).
@@ -33,6 +33,7 @@ use mps_solid::physics::{ElasticModel, MaterialLaw};
 /// above). A model that reproduced the FEM-scaled elastica instead of the solid (0.27 % stiffer
 /// than the solid at this level) would fail it.
 #[test]
+#[ignore = "slow (89 s on a loaded 2-core machine): the full test command runs it"]
 fn second_order_4_across_30_percent_matches_elastica() {
     let level = elastica_reference()[0];
     assert_eq!(level.target, 0.3);
@@ -98,6 +99,7 @@ fn assert_matches_finite_strain_fem(r: &ElasticaResult, law: MaterialLaw, g: f64
 /// at 30 % deflection the two laws' tips differ by 0.04 % in u_z and 1.2 % in u_x, so u_x tells
 /// them apart). Measured: u_z +0.13 %, u_x +0.22 %.
 #[test]
+#[ignore = "slow (97 s on a loaded 2-core machine): the full test command runs it"]
 fn neo_hookean_4_across_30_percent_matches_finite_strain_fem() {
     let level = elastica_reference()[0];
     let opt = RelaxOptions {

@@ -3,15 +3,15 @@
 //! limit of Saint Venant-Kirchhoff, a collapsed particle stops the run with an error naming it
 //! (never NaN), the paper's operators refuse it, and a Saint Venant-Kirchhoff blow-up says when
 //! the material had failed first.
-mod common;
+use crate::common;
 use common::block;
-use mps_solid::bending::{linear_bending, plate2d_scene};
 use mps_solid::physics::boundary::GravityLaw;
 use mps_solid::physics::world::{GroupInit, WorldState};
 use mps_solid::physics::{
     BodyInit, ElasticModel, InitialVelocity, Material, MaterialLaw, SimError, SolverOptions, Vect,
     World,
 };
+use mps_solid::studies::bending::{linear_bending, plate2d_scene};
 use nalgebra::{Matrix3, Rotation3};
 
 const ENERGY_MODELS: [ElasticModel; 2] = [ElasticModel::Corrected, ElasticModel::SecondOrder];
@@ -220,6 +220,7 @@ fn energy_models_are_objective() {
 }
 
 #[test]
+#[ignore = "slow (12 s on a loaded 2-core machine): the full test command runs it"]
 fn neo_hookean_has_the_small_strain_limit_of_saint_venant_kirchhoff() {
     // Both laws have the tangent 2 mu I + lambda I x I at zero strain, so the linearised first
     // frequency and static tip deflection of the GMS plate (4 across, nu = 0.3975) must agree.

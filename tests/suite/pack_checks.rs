@@ -1,7 +1,7 @@
 //! `mps pack` (issue 8, item 16): only the FMU library is packed, a scene that cannot be built
 //! or whose text the modelDescription.xml cannot hold is refused, the output never replaces the
 //! scene, a failed write leaves no partial .fmu, and IO errors name the path and the OS reason.
-mod common;
+use crate::common;
 
 use mps_solid::fmi::pack::{check_shared_library, pack_fmu};
 use mps_solid::Scene;
@@ -91,6 +91,7 @@ fn a_scene_that_cannot_be_built_is_refused_at_pack_time() {
 }
 
 #[test]
+#[ignore = "slow (21 s on a loaded 2-core machine): the full test command runs it"]
 fn a_failed_write_leaves_no_partial_fmu_and_names_path_and_reason() {
     let d = scratch("write");
     let scene = root().join("tests/data/small2d.json");

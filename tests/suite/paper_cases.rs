@@ -1,10 +1,11 @@
 //! The paper's cases 1 and 2 at the paper's particle spacing dp = 0.025 m against their
 //! references, and the scene files under scenes/ against the builders.
-use mps_solid::cases::{paper_scenes, CASE1_STATIONS};
 use mps_solid::physics::ElasticModel;
-use mps_solid::report;
+use mps_solid::studies::cases::{paper_scenes, CASE1_STATIONS};
+use mps_solid::studies::report;
 
 #[test]
+#[ignore = "slow (52 s on a loaded 2-core machine): the full test command runs it"]
 fn case1_column_matches_closed_form_within_3_percent() {
     // Lateral and axial displacement along the paper's line x = 0.1 m, y = 0: the relative
     // max-norm error over s >= 0.2 m (max |u - u_cf| / max |u_cf| on the line) must be <= 3 %
@@ -25,6 +26,7 @@ fn case1_column_matches_closed_form_within_3_percent() {
 }
 
 #[test]
+#[ignore = "slow (48 s on a loaded 2-core machine): the full test command runs it"]
 fn case2_beam_first_frequency_within_3_percent_of_3d_fem() {
     // First bending frequency from the least-squares sinusoid fit of the deflection at
     // x = 0.56 m, against the converged 3D FEM reference (reference/case2_fem.json): 3 %.
@@ -53,7 +55,7 @@ fn scene_files_match_the_case_builders() {
     // scenes/*.json are the builders' output (regenerate with `mps scenes scenes`).
     for sc in paper_scenes()
         .into_iter()
-        .chain(mps_solid::bending::benchmark_scenes())
+        .chain(mps_solid::studies::bending::benchmark_scenes())
     {
         let path = format!("{}/scenes/{}.json", env!("CARGO_MANIFEST_DIR"), sc.name);
         let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));

@@ -8,7 +8,9 @@
 //! by `fmi2Instantiate` and not yet freed, an FMU state one returned by this library for it.
 #![allow(non_camel_case_types, non_snake_case, clippy::missing_safety_doc)]
 
-use super::instance::{FmiError, FmiResult, FmuState, Instance, Logger, Status};
+use super::instance::{
+    panic_message, FmiError, FmiResult, FmuState, Instance, Job, Logger, Status,
+};
 use std::ffi::{c_char, c_int, c_uint, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -120,13 +122,6 @@ struct Component {
     inst: Mutex<Instance>,
     /// Set after a panic: the instance may be inconsistent.
     fatal: AtomicBool,
-}
-
-fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
-    p.downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| p.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown panic".into())
 }
 
 /// Runs f on the instance behind c: the panic boundary and the status mapping of every call
@@ -319,13 +314,14 @@ pub unsafe extern "C" fn fmi2Instantiate(
         };
         let location = string(fmuResourceLocation);
         const CO_SIMULATION: c_int = 1;
-        match Instance::instantiate(
+        match Instance::instantiate_with_runner(
             &name,
             fmuType == CO_SIMULATION,
             &guid,
             location.as_deref(),
             logger.clone(),
             loggingOn != 0,
+            start_threads,
         ) {
             Ok(inst) => {
                 for m in inst.take_log() {
@@ -782,6 +778,12 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
     })
 }
 
+/// How fmi2Instantiate starts an instance's worker threads (the instance's `ThreadRunner`):
+/// from a thread of [`run_on_os_thread`], so that none of them pins this library.
+fn start_threads(job: Job<'_>) -> Result<(), String> {
+    run_on_os_thread(job)
+}
+
 /// Runs `f` on a new OS thread created with `pthread_create` and waits for it to end.
 ///
 /// Used to start an instance's worker threads off the host's thread: `std::thread::spawn`
@@ -791,7 +793,7 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
 /// workers pinned every loaded copy of this library: `dlclose` never unmapped it. The thread
 /// made here ends (running its TLS destructors) before this returns.
 #[cfg(unix)]
-pub(crate) fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
+fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
     type Job<'a> = Option<Box<dyn FnOnce() + Send + 'a>>;
     extern "C" fn start(p: *mut c_void) -> *mut c_void {
         // SAFETY: p is the `Job` below, which the creating thread keeps alive and does not
@@ -839,7 +841,7 @@ pub(crate) fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<
 
 /// Elsewhere: a scoped std thread (no TLS-destructor pinning to avoid).
 #[cfg(not(unix))]
-pub(crate) fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
+fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
     std::thread::scope(|s| s.spawn(f).join())
         .map_err(|p| format!("internal error (panic): {}", panic_message(&*p)))
 }

@@ -5,7 +5,7 @@ use super::inputs::{BoundaryTiming, GravitySource, Inputs};
 use super::logging::{LogRecord, Logger, PendingLog};
 use super::resources::{load_scene, resource_dir};
 use super::status::{FmiError, FmiResult};
-use super::worker_pool::WorkerPool;
+use super::worker_pool::{scoped_thread, ThreadRunner, WorkerPool};
 use crate::fmi::model_description::guid;
 use crate::fmi::variables::{Quantity, VariableTable};
 use crate::scene::Scene;
@@ -69,7 +69,9 @@ pub struct Instance {
 }
 
 impl Instance {
-    /// fmi2Instantiate: checks the type, reads the scene from the resources and the GUID.
+    /// fmi2Instantiate: checks the type, reads the scene from the resources and the GUID. The
+    /// worker threads are spawned from a scoped thread (the C layer passes its own thread
+    /// runner to `instantiate_with_runner`).
     pub fn instantiate(
         name: &str,
         co_simulation: bool,
@@ -77,6 +79,28 @@ impl Instance {
         resource_location: Option<&str>,
         logger: Arc<dyn Logger>,
         logging_on: bool,
+    ) -> Result<Instance, String> {
+        Self::instantiate_with_runner(
+            name,
+            co_simulation,
+            fmu_guid,
+            resource_location,
+            logger,
+            logging_on,
+            scoped_thread,
+        )
+    }
+
+    /// [`Instance::instantiate`], spawning the worker threads from a thread that `run` starts
+    /// (the C layer passes its own: see [`ThreadRunner`]).
+    pub(crate) fn instantiate_with_runner(
+        name: &str,
+        co_simulation: bool,
+        fmu_guid: &str,
+        resource_location: Option<&str>,
+        logger: Arc<dyn Logger>,
+        logging_on: bool,
+        run: ThreadRunner,
     ) -> Result<Instance, String> {
         if !co_simulation {
             return Err(
@@ -95,7 +119,7 @@ impl Instance {
                 env!("CARGO_PKG_VERSION")
             ));
         }
-        let pool = WorkerPool::new(name)?;
+        let pool = WorkerPool::with_runner(name, run)?;
         let table = VariableTable::new(&scene);
         let inst = Instance {
             name: name.to_string(),

@@ -1,5 +1,6 @@
-//! Status and errors: the FMI status codes ([`Status`]), why a call failed ([`FmiError`]) and
-//! the one place where errors become status codes ([`FmiError::status`]).
+//! Status and errors: the FMI status codes ([`Status`]), why a call failed ([`FmiError`]), the
+//! one place where errors become status codes ([`FmiError::status`]), and the message of a
+//! caught panic.
 
 /// fmi2Status values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -48,6 +49,14 @@ impl FmiError {
 }
 
 pub type FmiResult<T> = Result<T, FmiError>;
+
+/// The message of a caught panic (for the error that reports it).
+pub(crate) fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| p.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
+}
 
 #[cfg(test)]
 mod tests {

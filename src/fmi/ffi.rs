@@ -8,7 +8,9 @@
 //! by `fmi2Instantiate` and not yet freed, an FMU state one returned by this library for it.
 #![allow(non_camel_case_types, non_snake_case, clippy::missing_safety_doc)]
 
-use super::instance::{FmiError, FmiResult, FmuState, Instance, Logger, Status};
+use super::instance::{
+    panic_message, FmiError, FmiResult, FmuState, Instance, Job, Logger, Status,
+};
 use std::ffi::{c_char, c_int, c_uint, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -120,13 +122,6 @@ struct Component {
     inst: Mutex<Instance>,
     /// Set after a panic: the instance may be inconsistent.
     fatal: AtomicBool,
-}
-
-fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
-    p.downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| p.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown panic".into())
 }
 
 /// Runs f on the instance behind c: the panic boundary and the status mapping of every call
@@ -319,13 +314,14 @@ pub unsafe extern "C" fn fmi2Instantiate(
         };
         let location = string(fmuResourceLocation);
         const CO_SIMULATION: c_int = 1;
-        match Instance::instantiate(
+        match Instance::instantiate_with_runner(
             &name,
             fmuType == CO_SIMULATION,
             &guid,
             location.as_deref(),
             logger.clone(),
             loggingOn != 0,
+            start_threads,
         ) {
             Ok(inst) => {
                 for m in inst.take_log() {
@@ -782,6 +778,12 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
     })
 }
 
+/// How fmi2Instantiate starts an instance's worker threads (the instance's `ThreadRunner`):
+/// from a thread of [`run_on_os_thread`], so that none of them pins this library.
+fn start_threads(job: Job<'_>) -> Result<(), String> {
+    run_on_os_thread(job)
+}
+
 /// Runs `f` on a new OS thread created with `pthread_create` and waits for it to end.
 ///
 /// Used to start an instance's worker threads off the host's thread: `std::thread::spawn`
@@ -791,7 +793,7 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
 /// workers pinned every loaded copy of this library: `dlclose` never unmapped it. The thread
 /// made here ends (running its TLS destructors) before this returns.
 #[cfg(unix)]
-pub(crate) fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
+fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
     type Job<'a> = Option<Box<dyn FnOnce() + Send + 'a>>;
     extern "C" fn start(p: *mut c_void) -> *mut c_void {
         // SAFETY: p is the `Job` below, which the creating thread keeps alive and does not
@@ -839,70 +841,10 @@ pub(crate) fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<
 
 /// Elsewhere: a scoped std thread (no TLS-destructor pinning to avoid).
 #[cfg(not(unix))]
-pub(crate) fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
+fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
     std::thread::scope(|s| s.spawn(f).join())
         .map_err(|p| format!("internal error (panic): {}", panic_message(&*p)))
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn run_on_os_thread_returns_the_result_on_another_thread() {
-        let me = std::thread::current().id();
-        let mut touched = false;
-        let r = run_on_os_thread(|| {
-            touched = true;
-            (std::thread::current().id() != me, 42)
-        });
-        assert_eq!(r, Ok((true, 42)));
-        assert!(touched, "the closure may borrow the caller's data");
-        let prev = std::panic::take_hook();
-        std::panic::set_hook(Box::new(|_| {}));
-        let e = run_on_os_thread(|| -> u8 { panic!("boom") });
-        std::panic::set_hook(prev);
-        assert!(e.unwrap_err().contains("boom"));
-    }
-    use crate::fmi::instance::NoLogger;
-
-    struct Capture(Mutex<Vec<(Status, String)>>);
-    impl Logger for Capture {
-        fn log(&self, status: Status, _: &str, message: &str) {
-            self.0.lock().unwrap().push((status, message.to_string()));
-        }
-    }
-
-    /// The panic boundary: a panic becomes fmi2Fatal with a message, then every call fails.
-    #[test]
-    fn panics_become_fatal() {
-        let dir = std::env::temp_dir().join(format!("mps-ffi-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let scene = crate::Scene::from_json(include_str!("../../tests/data/small3d.json")).unwrap();
-        std::fs::write(dir.join("scene.json"), scene.to_json()).unwrap();
-        let uri = format!("file://{}", dir.display());
-        let guid = crate::fmi::model_description::guid(&scene);
-        let inst =
-            Instance::instantiate("t", true, &guid, Some(&uri), Arc::new(NoLogger), false).unwrap();
-        let capture = Arc::new(Capture(Mutex::new(vec![])));
-        let comp = Component {
-            logger: capture.clone(),
-            inst: Mutex::new(inst),
-            fatal: AtomicBool::new(false),
-        };
-        let prev = std::panic::take_hook();
-        std::panic::set_hook(Box::new(|_| {}));
-        let s = guard(&comp, "fmi2Test", |_| panic!("boom"));
-        std::panic::set_hook(prev);
-        assert_eq!(s, fmi2Status::fmi2Fatal);
-        assert_eq!(guard(&comp, "fmi2Test", |_| Ok(())), fmi2Status::fmi2Error);
-        let log = capture.0.lock().unwrap();
-        assert_eq!(log[0].0, Status::Fatal);
-        assert!(
-            log[0].1.contains("panic") && log[0].1.contains("boom"),
-            "{log:?}"
-        );
-        assert!(log[1].1.contains("unusable"), "{log:?}");
-        std::fs::remove_dir_all(&dir).ok();
-    }
-}
+mod tests;

@@ -1,0 +1,413 @@
+//! The instance core: the [`Instance`] struct, fmi2Instantiate, the call-order state machine
+//! ([`Mode`] and its checks), setup, initialisation, terminate and reset, the model build and
+//! the cached outputs.
+use super::inputs::{BoundaryTiming, GravitySource, Inputs};
+use super::logging::{LogRecord, Logger, PendingLog};
+use super::resources::{load_scene, resource_dir};
+use super::status::{FmiError, FmiResult};
+use super::worker_pool::{scoped_thread, ThreadRunner, WorkerPool};
+use crate::fmi::model_description::guid;
+use crate::fmi::variables::{Quantity, VariableTable};
+use crate::scene::Scene;
+use crate::sim::Simulation;
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// The FMI 2.0 co-simulation states this FMU distinguishes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Mode {
+    Instantiated,
+    InitializationMode,
+    StepComplete,
+    /// After a doStep returned fmi2Error: values can be read, the state restored, the
+    /// instance reset or freed.
+    Error,
+    Terminated,
+}
+
+impl Mode {
+    fn name(self) -> &'static str {
+        match self {
+            Mode::Instantiated => "Instantiated",
+            Mode::InitializationMode => "InitializationMode",
+            Mode::StepComplete => "StepComplete",
+            Mode::Error => "Error",
+            Mode::Terminated => "Terminated",
+        }
+    }
+}
+
+/// One FMU instance.
+pub struct Instance {
+    name: String,
+    pub(super) guid: String,
+    /// The scene the FMU was packed with.
+    pub(super) scene: Scene,
+    /// The scene with the parameter values set by the host.
+    pub(super) params: Scene,
+    pub(super) table: VariableTable,
+    pub(super) sim: Option<Simulation>,
+    /// Parameters changed since the simulation was built.
+    pub(super) stale: bool,
+    pub(super) pool: WorkerPool,
+    pub(super) mode: Mode,
+    pub(super) inputs: Inputs,
+    /// startTime of fmi2SetupExperiment: the scene's time 0 (its time laws start here).
+    pub(super) start_time: f64,
+    pub(super) time: f64,
+    pub(super) last_successful_time: f64,
+    pub(super) stop_time: Option<f64>,
+    /// Output values at `time` (index = value reference), from the last successful step.
+    pub(super) outputs: Vec<f64>,
+    /// Whether the energies in `outputs` are those of the current state.
+    pub(super) energies_fresh: bool,
+    /// Whether the gravity inputs were set while the scene's law is in force (warned once).
+    pub(super) gravity_ignored_warned: bool,
+    /// The messages of the current call (handed to the logger after the call has released the
+    /// instance: [`Instance::take_log`]) and the debug-logging switches.
+    pub(super) log: PendingLog,
+}
+
+impl Instance {
+    /// fmi2Instantiate: checks the type, reads the scene from the resources and the GUID. The
+    /// worker threads are spawned from a scoped thread (the C layer passes its own thread
+    /// runner to `instantiate_with_runner`).
+    pub fn instantiate(
+        name: &str,
+        co_simulation: bool,
+        fmu_guid: &str,
+        resource_location: Option<&str>,
+        logger: Arc<dyn Logger>,
+        logging_on: bool,
+    ) -> Result<Instance, String> {
+        Self::instantiate_with_runner(
+            name,
+            co_simulation,
+            fmu_guid,
+            resource_location,
+            logger,
+            logging_on,
+            scoped_thread,
+        )
+    }
+
+    /// [`Instance::instantiate`], spawning the worker threads from a thread that `run` starts
+    /// (the C layer passes its own: see [`ThreadRunner`]).
+    pub(crate) fn instantiate_with_runner(
+        name: &str,
+        co_simulation: bool,
+        fmu_guid: &str,
+        resource_location: Option<&str>,
+        logger: Arc<dyn Logger>,
+        logging_on: bool,
+        run: ThreadRunner,
+    ) -> Result<Instance, String> {
+        if !co_simulation {
+            return Err(
+                "this FMU supports Co-Simulation only (fmuType must be fmi2CoSimulation)".into(),
+            );
+        }
+        let uri = resource_location
+            .ok_or("fmuResourceLocation is NULL: the FMU needs its resources/scene.json")?;
+        let dir = resource_dir(uri)?;
+        let scene = load_scene(&dir)?;
+        let expected = guid(&scene);
+        if fmu_guid != expected {
+            return Err(format!(
+                "GUID mismatch: the host passed {fmu_guid} but this FMU (scene '{}', mps-solid {}) has {expected}",
+                scene.name,
+                env!("CARGO_PKG_VERSION")
+            ));
+        }
+        let pool = WorkerPool::with_runner(name, run)?;
+        let table = VariableTable::new(&scene);
+        let inst = Instance {
+            name: name.to_string(),
+            guid: expected,
+            params: scene.clone(),
+            inputs: Inputs::start(&scene),
+            outputs: vec![0.0; table.vars.len()],
+            energies_fresh: false,
+            gravity_ignored_warned: false,
+            scene,
+            table,
+            sim: None,
+            stale: true,
+            pool,
+            mode: Mode::Instantiated,
+            start_time: 0.0,
+            time: 0.0,
+            last_successful_time: 0.0,
+            stop_time: None,
+            log: PendingLog::new(logger, logging_on),
+        };
+        inst.log.event(&format!(
+            "instantiated '{}' (scene '{}', {} variables)",
+            inst.name,
+            inst.scene.name,
+            inst.table.vars.len()
+        ));
+        // Under-resolved geometry: from the particles alone (the parameters change no geometry),
+        // so it is known here, before the model is built.
+        for w in inst.scene.warnings() {
+            inst.log.warn(w.to_string());
+        }
+        Ok(inst)
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+    pub fn table(&self) -> &VariableTable {
+        &self.table
+    }
+
+    /// The messages logged since the last call, in order. The C layer takes them while it holds
+    /// the instance and hands them to the host's logger after releasing it.
+    pub fn take_log(&self) -> Vec<LogRecord> {
+        self.log.take()
+    }
+
+    /// Hands the pending messages to the instance's logger (for Rust callers of this API; the C
+    /// layer uses [`Instance::take_log`] so that no lock is held while the host's logger runs).
+    pub fn flush_log(&self) {
+        self.log.flush()
+    }
+
+    /// Logs an error of a call (always: errors are not debug messages).
+    pub fn report(&self, function: &str, e: &FmiError) {
+        self.log.report(function, e)
+    }
+
+    /// fmi2SetDebugLogging.
+    pub fn set_debug_logging(&mut self, on: bool, categories: &[String]) -> FmiResult<()> {
+        self.log.set_debug_logging(on, categories)
+    }
+
+    pub(super) fn require(&self, function: &str, allowed: &[Mode]) -> FmiResult<()> {
+        if allowed.contains(&self.mode) {
+            Ok(())
+        } else {
+            Err(FmiError::IllegalCall(format!(
+                "illegal call sequence: {function} is not allowed in state {} (allowed in: {})",
+                self.mode.name(),
+                allowed
+                    .iter()
+                    .map(|m| m.name())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )))
+        }
+    }
+
+    /// fmi2SetupExperiment: the tolerance is ignored (the solver's step is set by stability).
+    /// startTime becomes the scene's time 0: its time laws (the Eq. (46) ramp) start there.
+    pub fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> FmiResult<()> {
+        self.require("fmi2SetupExperiment", &[Mode::Instantiated])?;
+        if !start.is_finite() {
+            return Err(FmiError::Invalid(format!(
+                "startTime = {start} must be finite"
+            )));
+        }
+        if let Some(s) = stop {
+            if !(s.is_finite() && s > start) {
+                return Err(FmiError::Invalid(format!(
+                    "stopTime = {s} must be finite and after startTime = {start}"
+                )));
+            }
+        }
+        if self.sim.as_ref().is_some_and(|s| s.time() != 0.0) {
+            return Err(FmiError::IllegalCall(
+                "fmi2SetupExperiment after a restored FMU state that is not at the start: the \
+                 state already fixes the time"
+                    .into(),
+            ));
+        }
+        self.stop_time = stop;
+        self.start_time = start;
+        self.time = start;
+        self.last_successful_time = start;
+        Ok(())
+    }
+
+    /// Builds (or rebuilds after parameter changes) the simulation on the instance's threads.
+    pub(super) fn build(&mut self) -> FmiResult<()> {
+        if !self.stale && self.sim.is_some() {
+            return Ok(());
+        }
+        let params = &self.params;
+        let sim = self
+            .pool
+            .install(|| Simulation::new(params))
+            .map_err(|e| FmiError::Solver(format!("cannot build the model: {e}")))?;
+        self.log.event(&format!(
+            "built the model: {} particles, {} bonds, solver step {:.4e} s",
+            sim.particles(),
+            sim.bonds(),
+            sim.max_dt()
+        ));
+        // What only the built model knows (the scene's own warnings were logged at
+        // instantiation): second-order bodies without the closure at their free faces.
+        let known = self.scene.warnings();
+        for w in sim.warnings() {
+            if !known.contains(w) {
+                self.log.warn(w.to_string());
+            }
+        }
+        self.sim = Some(sim);
+        self.stale = false;
+        self.refresh_outputs()
+    }
+
+    /// The cheap outputs (probes, reactions, counters) of a simulation, in table order (None
+    /// for the others); an error if one is not finite.
+    pub(super) fn cheap_outputs(&self, sim: &Simulation) -> FmiResult<Vec<Option<f64>>> {
+        let table = &self.table;
+        let n_loads = self.scene.loads.len();
+        let new: Vec<Option<f64>> = self.pool.install(|| {
+            let loads: Vec<_> = (0..n_loads).map(|r| sim.load_motion(r)).collect();
+            table
+                .vars
+                .iter()
+                .map(|v| match v.quantity {
+                    Quantity::ProbeDisplacement(p, k) => Some(sim.probe_displacement(p)[k]),
+                    Quantity::ProbeVelocity(p, k) => Some(sim.probe_velocity(p)[k]),
+                    Quantity::LoadDisplacement(r, k) => Some(loads[r].0[k]),
+                    Quantity::LoadVelocity(r, k) => Some(loads[r].1[k]),
+                    Quantity::Reaction(g, k) => Some(sim.group_reaction(g)[k]),
+                    Quantity::FractureCount => Some(sim.broken_bonds() as f64),
+                    Quantity::Steps => Some(sim.steps() as f64),
+                    Quantity::FractureEnergy => Some(sim.fracture_energy()),
+                    _ => None,
+                })
+                .collect()
+        });
+        if let Some((i, _)) = new
+            .iter()
+            .enumerate()
+            .find(|(_, x)| x.is_some_and(|x| !x.is_finite()))
+        {
+            return Err(FmiError::Solver(format!(
+                "output {} became non-finite at t = {}",
+                self.table.vars[i].name,
+                self.start_time + sim.time()
+            )));
+        }
+        Ok(new)
+    }
+
+    pub(super) fn store_outputs(&mut self, new: Vec<Option<f64>>) {
+        for (o, n) in self.outputs.iter_mut().zip(new) {
+            if let Some(n) = n {
+                *o = n;
+            }
+        }
+        self.energies_fresh = false;
+    }
+
+    /// Recomputes the cached outputs that are cheap and marks the energies stale (they cost a
+    /// pass over all bonds: computed on demand). Fails, leaving the cache alone, if any value is
+    /// not finite.
+    pub(super) fn refresh_outputs(&mut self) -> FmiResult<()> {
+        let Some(sim) = &self.sim else {
+            return Ok(());
+        };
+        let new = self.cheap_outputs(sim)?;
+        self.store_outputs(new);
+        Ok(())
+    }
+
+    /// Brings the cached energies up to date; a non-finite energy is an error (never a stale
+    /// or NaN value handed out with fmi2OK).
+    pub(super) fn update_energies(&mut self) -> FmiResult<()> {
+        if self.energies_fresh {
+            return Ok(());
+        }
+        let Some(sim) = &self.sim else {
+            return Ok(());
+        };
+        let (ke, se) = self
+            .pool
+            .install(|| (sim.kinetic_energy(), sim.strain_energy()));
+        for (name, e) in [("kinetic_energy", ke), ("strain_energy", se)] {
+            if !e.is_finite() {
+                return Err(FmiError::Solver(format!(
+                    "{name} is {e} at t = {}: the state is not valid (see the solver's earlier messages)",
+                    self.time
+                )));
+            }
+        }
+        for (v, o) in self.table.vars.iter().zip(self.outputs.iter_mut()) {
+            match v.quantity {
+                Quantity::KineticEnergy => *o = ke,
+                Quantity::StrainEnergy => *o = se,
+                _ => {}
+            }
+        }
+        self.energies_fresh = true;
+        Ok(())
+    }
+
+    /// fmi2EnterInitializationMode: builds the simulation.
+    pub fn enter_initialization_mode(&mut self) -> FmiResult<()> {
+        self.require("fmi2EnterInitializationMode", &[Mode::Instantiated])?;
+        self.build()?;
+        self.mode = Mode::InitializationMode;
+        self.log.event("entered initialization mode");
+        Ok(())
+    }
+
+    /// fmi2ExitInitializationMode: rebuilds if parameters changed during initialisation.
+    pub fn exit_initialization_mode(&mut self) -> FmiResult<()> {
+        self.require("fmi2ExitInitializationMode", &[Mode::InitializationMode])?;
+        self.build()?;
+        self.mode = Mode::StepComplete;
+        self.log.event(&format!(
+            "exited initialization mode: gravity from {}; boundary displacement inputs {}",
+            match self.inputs.gravity_source {
+                GravitySource::Scene => "the scene's law (gravity inputs ignored)",
+                GravitySource::Inputs => "the inputs gravity_*",
+            },
+            match self.inputs.boundary_timing {
+                BoundaryTiming::AtStepStart =>
+                    "act at the start of each step (held or extrapolated)",
+                BoundaryTiming::AtStepEnd => "are reached at the end of each step",
+            }
+        ));
+        Ok(())
+    }
+
+    /// fmi2Terminate.
+    pub fn terminate(&mut self) -> FmiResult<()> {
+        self.require("fmi2Terminate", &[Mode::StepComplete])?;
+        self.mode = Mode::Terminated;
+        self.log.event(&format!("terminated at t = {}", self.time));
+        Ok(())
+    }
+
+    /// fmi2Reset: back to the instantiated state with the scene's parameters and start values.
+    pub fn reset(&mut self) -> FmiResult<()> {
+        self.params = self.scene.clone();
+        self.inputs = Inputs::start(&self.scene);
+        self.sim = None;
+        self.stale = true;
+        self.outputs = vec![0.0; self.table.vars.len()];
+        self.energies_fresh = false;
+        self.gravity_ignored_warned = false;
+        self.start_time = 0.0;
+        self.time = 0.0;
+        self.last_successful_time = 0.0;
+        self.stop_time = None;
+        self.mode = Mode::Instantiated;
+        self.log.event("reset");
+        Ok(())
+    }
+
+    /// An unsupported function: logs why and fails.
+    pub fn unsupported(function: &str, why: &str) -> FmiError {
+        FmiError::Invalid(format!("{function} is not supported: {why}"))
+    }
+}

@@ -45,6 +45,33 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_MPS = ROOT / "target" / "release" / "mps"
+# Seconds one run of mps may take before it is killed and its row failed. One hour is far above
+# the project's sweep runs (a full case 3 run, 1.7 s simulated, 5300 particles: 17 s on 2 idle
+# cores, 30-70 s on one thread of a loaded machine; BENCHMARKS.md) and still ends a stuck run
+# the same day; raise it with --timeout for larger scenes.
+DEFAULT_TIMEOUT_S = 3600.0
+
+
+class SweepError(ValueError):
+    """Bad input (an option, the table, the base scene, the output): the message names it."""
+
+
+def check_numbers(workers: int = 1, threads: int | None = None, timeout: float | None = None,
+                  retries: int = 0) -> None:
+    """Refuses a worker count or solver thread count below 1, a timeout that is not a finite
+    positive number of seconds (None: no timeout) and negative retries."""
+    def is_int(v):
+        return isinstance(v, int) and not isinstance(v, bool)
+
+    if not is_int(workers) or workers < 1:
+        raise SweepError(f"workers must be an integer of at least 1, got {workers!r}")
+    if threads is not None and (not is_int(threads) or threads < 1):
+        raise SweepError(f"threads must be an integer of at least 1, got {threads!r}")
+    if timeout is not None and (isinstance(timeout, bool) or not isinstance(timeout, (int, float))
+                                or not math.isfinite(timeout) or timeout <= 0):
+        raise SweepError(f"timeout must be a finite number of seconds above 0, got {timeout!r}")
+    if not is_int(retries) or retries < 0:
+        raise SweepError(f"retries must be an integer of at least 0, got {retries!r}")
 
 # ---------------------------------------------------------------------------------------------
 # Scene field paths
@@ -220,7 +247,7 @@ def run_scene(scene: dict, params: dict, mps: str, mode: str = "run", want_serie
             cmd = [mps, "run", str(path), "--out", str(Path(tmp) / "out"), "--json"]
         try:
             env = dict(os.environ)
-            if threads:
+            if threads is not None:
                 env["RAYON_NUM_THREADS"] = str(threads)
             p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
         except subprocess.TimeoutExpired:
@@ -365,15 +392,16 @@ def make_client(scheduler: str | None, workers: int, processes: bool = True):
 def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path | None = None,
           client=None, scheduler: str | None = None, workers: int = 2, mode: str = "run",
           mps: Path = DEFAULT_MPS, series: Path | None = None, retries: int = 2,
-          timeout: float | None = None, retry_failed: bool = False, stop_time: float | None = None,
+          timeout: float | None = DEFAULT_TIMEOUT_S, retry_failed: bool = False, stop_time: float | None = None,
           step_size: float | None = None, processes: bool = True, progress: bool = True,
           threads: int | None = None):
-    """Runs every row of ``table`` not already in ``out``; returns the results DataFrame."""
+    """Runs every row of ``table`` not already in ``out``; returns the results DataFrame.
+    ``timeout``: seconds per run of mps (None: none). Bad input raises SweepError."""
     from distributed import as_completed
-    import pandas as pd
 
     if (base is None) == (fmu is None):
         raise ValueError("give exactly one of base (a scene) or fmu")
+    check_numbers(workers, threads, timeout, retries)
     params_cols = sorted({k for r in table for k in r})
     first = params_cols + ["scene_hash", "status", "message"]
 
@@ -539,7 +567,31 @@ def plot(df, x: str, ys: list[str], path: Path, hue: str | None = None) -> None:
 # ---------------------------------------------------------------------------------------------
 
 
-def main(argv: list[str] | None = None) -> int:
+def _int_at_least(low: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds above 0, got {text}")
+    return value
+
+
+def make_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group(required=True)
@@ -549,7 +601,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="CSV of variations, one column per field path or FMU parameter")
     ap.add_argument("--out", type=Path, required=True, help="results .csv or .parquet")
     ap.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:8786)")
-    ap.add_argument("--workers", type=int, default=max(1, os.cpu_count() or 1),
+    ap.add_argument("--workers", type=_int_at_least(1), default=max(1, os.cpu_count() or 1),
                     help="LocalCluster workers (default: the number of cores)")
     ap.add_argument("--mode", choices=["run", "case3"], default="run",
                     help="run: `mps run` (probes, frequency, peak); case3: `mps case3 --scene` "
@@ -557,11 +609,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mps", type=Path, default=Path(os.environ.get("MPS_BIN", DEFAULT_MPS)),
                     help="the mps program (on a cluster: its path on the workers)")
     ap.add_argument("--series", type=Path, help="write each run's series to DIR/<hash>.csv")
-    ap.add_argument("--threads", type=int,
+    ap.add_argument("--threads", type=_int_at_least(1),
                     help="solver threads per run (RAYON_NUM_THREADS; default: all cores; "
                          "cores / workers avoids oversubscription)")
-    ap.add_argument("--retries", type=int, default=2, help="re-runs of a task whose worker died")
-    ap.add_argument("--timeout", type=float, help="seconds per run (then: failed)")
+    ap.add_argument("--retries", type=_int_at_least(0), default=2,
+                    help="re-runs of a task that raised (default: 2)")
+    ap.add_argument("--timeout", type=_seconds, default=DEFAULT_TIMEOUT_S,
+                    help="seconds per run of mps; a run still going then is killed and its row "
+                         f"failed (default: {DEFAULT_TIMEOUT_S:g}; raise it for long runs)")
     ap.add_argument("--retry-failed", action="store_true", help="re-run rows recorded as failed")
     ap.add_argument("--stop-time", type=float, help="FMU: stop time (s)")
     ap.add_argument("--step-size", type=float, help="FMU: communication step (s)")
@@ -570,6 +625,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--y", action="append", default=[], help="plot: y column (repeatable)")
     ap.add_argument("--hue", help="plot: one line per value of this column")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = make_parser()
     a = ap.parse_args(argv)
     if a.out.suffix not in (".csv", ".parquet"):
         ap.error(f"--out must end in .csv or .parquet, got {a.out}")

@@ -36,6 +36,7 @@ import math
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -227,10 +228,48 @@ def _series_case3(rep: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _die_with_parent():
+    """On Linux, a ``preexec_fn`` that puts the child in a process group of its own and has the
+    kernel send it SIGKILL when the thread that started it ends (``prctl(PR_SET_PDEATHSIG)``), so
+    a run dies with its Dask worker even when the worker is killed with SIGKILL. None elsewhere
+    (or without prctl): the caller starts a new session instead, which still gives a group to
+    kill on timeout. The setting survives ``exec`` (a wrapper script that execs mps keeps it)
+    but not ``fork``: a wrapper should exec mps rather than start it as a child."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        import ctypes
+
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    parent = os.getpid()
+
+    def preexec():
+        os.setpgid(0, 0)
+        prctl(1, ctypes.c_ulong(signal.SIGKILL))  # PR_SET_PDEATHSIG
+        if os.getppid() != parent:  # the parent died before the prctl
+            os._exit(137)
+
+    return preexec
+
+
+def _kill_group(p: subprocess.Popen) -> None:
+    """SIGKILL to the run's process group (the program and whatever it started)."""
+    try:
+        os.killpg(p.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    except OSError:
+        p.kill()
+
+
 def run_scene(scene: dict, params: dict, mps: str, mode: str = "run", want_series: bool = False,
               timeout: float | None = None, threads: int | None = None) -> dict:
     """Writes ``scene`` to a temporary directory and runs ``mps`` on it; returns the result row
-    (never raises for a failed run: status ``failed`` and the message)."""
+    (never raises for a failed run: status ``failed`` and the message). ``timeout``: seconds,
+    then the run's process group is killed and the row failed (None: no limit). The run dies
+    with the process that called this (Linux; see ``_die_with_parent``)."""
     row: dict[str, Any] = dict(params)
     row["scene_hash"] = scene_hash(scene)
     row["status"] = "failed"
@@ -245,26 +284,41 @@ def run_scene(scene: dict, params: dict, mps: str, mode: str = "run", want_serie
             cmd = [mps, "case3", "--scene", str(path), "--json"]
         else:
             cmd = [mps, "run", str(path), "--out", str(Path(tmp) / "out"), "--json"]
+        env = dict(os.environ)
+        if threads is not None:
+            env["RAYON_NUM_THREADS"] = str(threads)
+        preexec = _die_with_parent()
+        group = {"preexec_fn": preexec} if preexec is not None else {"start_new_session": True}
         try:
-            env = dict(os.environ)
-            if threads is not None:
-                env["RAYON_NUM_THREADS"] = str(threads)
-            p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
-        except subprocess.TimeoutExpired:
-            row["message"] = f"timeout after {timeout} s"
-            return row
+            p = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True, encoding="utf-8",
+                                 errors="replace", env=env, **group)
         except OSError as e:
             row["message"] = f"cannot run {mps}: {e}"
             return row
-        err = "\n".join(l for l in p.stderr.splitlines() if l.startswith("error"))
-        res = None
-        if p.stdout.strip():
+        with p:
             try:
-                res = json.loads(p.stdout)
+                stdout, stderr = p.communicate(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                _kill_group(p)
+                try:
+                    p.communicate(timeout=10)
+                except subprocess.TimeoutExpired:  # a process outside the group holds the pipes
+                    pass
+                row["message"] = f"timeout after {timeout:g} s"
+                return row
+            except BaseException:
+                _kill_group(p)
+                raise
+        err = "\n".join(l for l in stderr.splitlines() if l.startswith("error"))
+        res = None
+        if stdout.strip():
+            try:
+                res = json.loads(stdout)
             except ValueError:
                 res = None
         if res is None:
-            row["message"] = err or p.stderr.strip()[-500:] or f"exit code {p.returncode}, no output"
+            row["message"] = err or stderr.strip()[-500:] or f"exit code {p.returncode}, no output"
             return row
         if mode == "case3":
             rep = res[0] if isinstance(res, list) else res

@@ -28,9 +28,11 @@ Example::
 from __future__ import annotations
 
 import argparse
+import codecs
 import copy
 import csv
 import hashlib
+import io
 import json
 import math
 import os
@@ -162,14 +164,82 @@ def scene_hash(scene: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def decode_utf8(data: bytes, what: str) -> str:
+    """``data`` as UTF-8 text (a byte-order mark is dropped); UTF-16/32, other encodings and NUL
+    characters are a SweepError naming ``what`` and the line."""
+    for bom, name in ((codecs.BOM_UTF32_LE, "UTF-32"), (codecs.BOM_UTF32_BE, "UTF-32"),
+                      (codecs.BOM_UTF16_LE, "UTF-16"), (codecs.BOM_UTF16_BE, "UTF-16")):
+        if data.startswith(bom):
+            raise SweepError(f"{what}: {name} text (byte-order mark {bom.hex()}), not UTF-8; "
+                             "save it as UTF-8")
+    if data.startswith(codecs.BOM_UTF8):
+        data = data[len(codecs.BOM_UTF8):]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[:e.start].count(b"\n") + 1
+        raise SweepError(f"{what}: not UTF-8 text (byte 0x{data[e.start]:02x} on line {line}); "
+                         "save it as UTF-8") from None
+    if "\0" in text:
+        line = text[:text.index("\0")].count("\n") + 1
+        raise SweepError(f"{what}: a NUL character on line {line} (UTF-16 without a byte-order "
+                         "mark, or not a text file?); save it as UTF-8 text")
+    return text
+
+
+def _cells(n: int) -> str:
+    return f"{n} cell" if n == 1 else f"{n} cells"
+
+
 def read_table(path: Path) -> list[dict[str, Any]]:
-    """The variations table: one dict (column -> value) per row; blank cells are left out."""
-    with open(path, newline="") as f:
-        rows = []
-        for r in csv.DictReader(f):
-            rows.append({k.strip(): parse_value(v) for k, v in r.items() if k and v is not None and v.strip() != ""})
+    """The variations table, CSV in UTF-8: one dict (column -> value) per row. The header names
+    the columns (each once, none empty); every row has as many cells as the header. An empty
+    cell keeps the base scene's value (the column is left out of that row's dict); blank lines
+    and rows whose cells are all empty are skipped. Anything else is a SweepError naming the
+    file, the line and the data row (data row 1 is the record after the header)."""
+    path = Path(path)
+    what = f"--table {path}"
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise SweepError(f"{what}: cannot read it ({e.strerror or e})") from None
+    reader = csv.reader(io.StringIO(decode_utf8(data, what), newline=""), strict=True)
+    header: list[str] | None = None
+    record = 0  # data row: records after the header, blank ones included
+    rows: list[dict[str, Any]] = []
+    line = 1
+    try:
+        for cells in reader:
+            first, line = line, reader.line_num + 1  # first line of this record; of the next
+            if header is None:
+                if not any(c.strip() for c in cells):
+                    continue
+                header = [c.strip() for c in cells]
+                seen: dict[str, int] = {}
+                for i, name in enumerate(header, 1):
+                    if not name:
+                        raise SweepError(f"{what}: column {i} of the header (line {first}) has no "
+                                         "name")
+                    if name in seen:
+                        raise SweepError(f"{what}: the column {name!r} appears twice in the "
+                                         f"header (columns {seen[name]} and {i})")
+                    seen[name] = i
+                continue
+            record += 1
+            if not any(c.strip() for c in cells):
+                continue
+            if len(cells) != len(header):
+                n = len(header)
+                raise SweepError(f"{what}: line {first} (data row {record}) has "
+                                 f"{_cells(len(cells))}, the header has {n} column"
+                                 f"{'' if n == 1 else 's'}")
+            rows.append({k: parse_value(v) for k, v in zip(header, cells) if v.strip() != ""})
+    except csv.Error as e:
+        raise SweepError(f"{what}: line {line}: {e}") from None
+    if header is None:
+        raise SweepError(f"{what}: empty (no header)")
     if not rows:
-        raise SystemExit(f"error: the table {path} has no rows")
+        raise SweepError(f"{what}: no rows under the header")
     return rows
 
 
@@ -697,12 +767,15 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--mps {a.mps}: no such program (cargo build --release)")
     if a.plot and (not a.x or not a.y):
         ap.error("--plot needs --x and at least one --y")
-    table = read_table(a.table)
-    df = sweep(table, a.out, base=a.base, fmu=a.fmu, scheduler=a.scheduler, workers=a.workers,
-               mode=a.mode, mps=Path(a.mps).resolve() if not a.scheduler else a.mps,
-               series=a.series, retries=a.retries, timeout=a.timeout,
-               retry_failed=a.retry_failed, stop_time=a.stop_time, step_size=a.step_size,
-               progress=not a.quiet, threads=a.threads)
+    try:
+        table = read_table(a.table)
+        df = sweep(table, a.out, base=a.base, fmu=a.fmu, scheduler=a.scheduler, workers=a.workers,
+                   mode=a.mode, mps=Path(a.mps).resolve() if not a.scheduler else a.mps,
+                   series=a.series, retries=a.retries, timeout=a.timeout,
+                   retry_failed=a.retry_failed, stop_time=a.stop_time, step_size=a.step_size,
+                   progress=not a.quiet, threads=a.threads)
+    except SweepError as e:  # bad input: one line, argparse's status 2, no traceback
+        ap.exit(2, f"{ap.prog}: error: {e}\n")
     n_ok = int((df["status"] == "ok").sum()) if len(df) else 0
     print(f"sweep: {n_ok} ok, {len(df) - n_ok} failed, results in {a.out}", file=sys.stderr)
     if a.plot:

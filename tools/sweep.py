@@ -43,6 +43,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -185,6 +186,59 @@ def decode_utf8(data: bytes, what: str) -> str:
         raise SweepError(f"{what}: a NUL character on line {line} (UTF-16 without a byte-order "
                          "mark, or not a text file?); save it as UTF-8 text")
     return text
+
+
+def _not_json(node: Any, where: str = "") -> str | None:
+    """The path of the first value in ``node`` that JSON cannot hold (a TOML date or time)."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            hit = _not_json(v, f"{where}.{k}" if where else str(k))
+            if hit:
+                return hit
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            hit = _not_json(v, f"{where}[{i}]")
+            if hit:
+                return hit
+    elif not (node is None or isinstance(node, (str, int, float, bool))):
+        return where or "the scene"
+    return None
+
+
+def load_base(path: Path) -> dict:
+    """The base scene as a dict: TOML when the file name ends in ``.toml``, else JSON, as
+    ``mps run`` reads them (the runs get it as JSON). A missing file, text that is not UTF-8,
+    invalid JSON or TOML, a TOML date/time or a top level that is not an object is a SweepError
+    naming the file (and the line). Whether the scene itself is valid is for mps to say, run by
+    run."""
+    path = Path(path)
+    what = f"--base {path}"
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise SweepError(f"{what}: no such file") from None
+    except OSError as e:
+        raise SweepError(f"{what}: cannot read it ({e.strerror or e})") from None
+    text = decode_utf8(data, what)
+    if path.suffix == ".toml":
+        try:
+            scene = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise SweepError(f"{what}: not valid TOML: {e}") from None
+        bad = _not_json(scene)
+        if bad:
+            raise SweepError(f"{what}: {bad} is a TOML date/time, which no scene field takes")
+    else:
+        try:
+            scene = json.loads(text)
+        except json.JSONDecodeError as e:
+            hint = "" if text.lstrip()[:1] in ("{", "[") else " (a TOML scene needs the .toml extension)"
+            raise SweepError(f"{what}: not valid JSON: {e.msg} at line {e.lineno} column "
+                             f"{e.colno}{hint}") from None
+    if not isinstance(scene, dict):
+        raise SweepError(f"{what}: a scene is an object ({{...}}), this is a "
+                         f"{type(scene).__name__}")
+    return scene
 
 
 def _cells(n: int) -> str:
@@ -533,7 +587,7 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
     jobs = []
     prebuilt: list[dict] = []
     if base is not None:
-        base_scene = json.loads(Path(base).read_text())
+        base_scene = load_base(base)
         for params in table:
             scene = copy.deepcopy(base_scene)
             try:
@@ -719,7 +773,7 @@ def make_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--base", type=Path, help="base scene (JSON)")
+    src.add_argument("--base", type=Path, help="base scene (JSON; TOML if it ends in .toml)")
     src.add_argument("--fmu", type=Path, help="FMU to simulate with fmpy (columns: parameter names)")
     ap.add_argument("--table", type=Path, required=True,
                     help="CSV of variations, one column per field path or FMU parameter")

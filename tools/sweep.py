@@ -523,14 +523,50 @@ def run_fmu(fmu_bytes: bytes, fmu_hash: str, params: dict, stop_time: float | No
 # Results file
 
 
+RESULT_KEYS = ("scene_hash", "status")
+
+
 def read_results(path: Path):
+    """The results already in ``path`` (none when there is no file or it is empty). A file that
+    cannot be read, or lacks the columns scene_hash and status (another tool's table, or not a
+    table), is a SweepError, and the file is left as it is. Results with other parameter or
+    figure columns (another table, another base scene) are kept: new rows are added to them."""
     import pandas as pd
 
-    if not path.exists():
+    path = Path(path)
+    what = f"--out {path}"
+    if path.is_dir():
+        raise SweepError(f"{what}: a folder; give the results file (.csv or .parquet) to write")
+    if not path.exists() or path.stat().st_size == 0:
         return pd.DataFrame()
-    if path.suffix == ".parquet":
-        return pd.read_parquet(path)
-    return pd.read_csv(path)
+    keep = "; it is left as it is: move it away or give another --out"
+    try:
+        if path.suffix == ".parquet":
+            df = pd.read_parquet(path)
+        else:
+            df = pd.read_csv(path, encoding="utf-8")
+    except Exception as e:  # noqa: BLE001 - pandas and pyarrow raise many kinds
+        reason = (str(e).strip().splitlines() or [type(e).__name__])[0][:200]
+        raise SweepError(f"{what}: an existing file that cannot be read as results ({reason})"
+                         f"{keep}") from None
+    missing = [c for c in RESULT_KEYS if c not in df.columns]
+    if missing:
+        raise SweepError(f"{what}: an existing file without the column"
+                         f"{'s' if len(missing) > 1 else ''} {', '.join(missing)} (not results "
+                         f"of this tool){keep}")
+    return df
+
+
+def _make_folder(folder: Path, what: str) -> None:
+    """Creates ``folder`` (and its parents); SweepError naming ``what`` when it cannot."""
+    if folder.exists() and not folder.is_dir():
+        raise SweepError(f"{what}: {folder} is not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise SweepError(f"{what}: cannot create the folder {folder} ({e.strerror or e})") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise SweepError(f"{what}: cannot write in the folder {folder}")
 
 
 def write_results(path: Path, rows: list[dict], columns_first: list[str]) -> None:
@@ -580,6 +616,8 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
     if (base is None) == (fmu is None):
         raise ValueError("give exactly one of base (a scene) or fmu")
     check_numbers(workers, threads, timeout, retries)
+    out = Path(out)
+    series = Path(series) if series is not None else None
     params_cols = sorted({k for r in table for k in r})
     first = params_cols + ["scene_hash", "status", "message"]
 
@@ -608,6 +646,9 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
             jobs.append((hashlib.sha256(key.encode()).hexdigest(), params, None))
 
     done = read_results(out)
+    _make_folder(out.parent, f"--out {out}")
+    if series is not None:
+        _make_folder(series, f"--series {series}")
     rows: list[dict] = done.to_dict("records") if len(done) else []
     if retry_failed and rows:
         rows = [r for r in rows if r.get("status") == "ok"]
@@ -627,8 +668,6 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
     skipped = len(jobs) - len(todo)
     print(f"sweep: {len(table)} rows, {skipped} already in {out} (or repeated), {len(todo)} to run",
           file=sys.stderr)
-    if series is not None:
-        series.mkdir(parents=True, exist_ok=True)
     if not todo:
         if changed or not out.exists():
             write_results(out, rows, first)
@@ -823,6 +862,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--plot needs --x and at least one --y")
     try:
         table = read_table(a.table)
+        if a.plot:
+            _make_folder(a.plot.parent, f"--plot {a.plot}")
         df = sweep(table, a.out, base=a.base, fmu=a.fmu, scheduler=a.scheduler, workers=a.workers,
                    mode=a.mode, mps=Path(a.mps).resolve() if not a.scheduler else a.mps,
                    series=a.series, retries=a.retries, timeout=a.timeout,
@@ -833,6 +874,9 @@ def main(argv: list[str] | None = None) -> int:
     n_ok = int((df["status"] == "ok").sum()) if len(df) else 0
     print(f"sweep: {n_ok} ok, {len(df) - n_ok} failed, results in {a.out}", file=sys.stderr)
     if a.plot:
+        if a.x not in df.columns:
+            ap.exit(2, f"{ap.prog}: error: --x {a.x}: not a column of the results in {a.out} "
+                       "(the table's columns, and the figures of the runs that went well)\n")
         plot(df, a.x, a.y, a.plot, a.hue)
         print(f"sweep: plot {a.plot}", file=sys.stderr)
     return 0

@@ -311,6 +311,11 @@ def test_output_that_cannot_be_written(base, table, fake_mps, tmp_path):
     folder.mkdir()
     assert_user_error(cli("--base", base, "--table", table, "--out", folder, "--mps", fake_mps),
                       "--out", "res.csv")
+    out = tmp_path / "ok.csv"
+    assert_user_error(cli("--base", base, "--table", table, "--out", out, "--mps", fake_mps,
+                          "--plot", blocker / "p.png", "--x", "end_time", "--y", "steps"),
+                      "--plot", "p.png")
+    assert not out.exists()  # refused before the runs, not after them
 
 
 @pytest.mark.parametrize("name,content", [

@@ -13,10 +13,16 @@ fmpy, and returns one result row: the parameters, the sha256 of the varied scene
 By default the runs go to a LocalCluster on this machine (``--workers`` processes, one thread
 each); with ``--scheduler ADDRESS`` the same sweep runs on an existing Dask cluster (its workers
 need the ``mps`` program at the path given by ``--mps``, or the FMU is sent to them). A run's
-failure (scene error, blow-up, overlap, timeout) is a row with status ``failed`` and its message
-and does not stop the sweep; a task whose worker dies is re-run elsewhere (Dask's retries).
-Results are written after each finished run; re-running a sweep skips the rows whose scene hash
-is already in the output (``--retry-failed`` re-runs the failed ones).
+failure (scene error, blow-up, overlap, timeout: ``--timeout``, one hour by default) is a row
+with status ``failed`` and its message and does not stop the sweep; a task whose worker dies is
+re-run elsewhere (Dask's retries), and on Linux its ``mps`` run dies with it. Results are written
+after each finished run; re-running a sweep skips the rows whose scene hash is already in the
+output (``--retry-failed`` re-runs the failed ones).
+
+The base scene is JSON, or TOML when its name ends in ``.toml``. Bad input (an option, a table
+row with more or fewer cells than the header, a duplicated column, a file that is not UTF-8, a
+base scene that does not parse, an output that is not results of this tool) is refused before
+anything runs: one line naming it, exit status 2.
 
 Example::
 

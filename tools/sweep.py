@@ -13,10 +13,16 @@ fmpy, and returns one result row: the parameters, the sha256 of the varied scene
 By default the runs go to a LocalCluster on this machine (``--workers`` processes, one thread
 each); with ``--scheduler ADDRESS`` the same sweep runs on an existing Dask cluster (its workers
 need the ``mps`` program at the path given by ``--mps``, or the FMU is sent to them). A run's
-failure (scene error, blow-up, overlap, timeout) is a row with status ``failed`` and its message
-and does not stop the sweep; a task whose worker dies is re-run elsewhere (Dask's retries).
-Results are written after each finished run; re-running a sweep skips the rows whose scene hash
-is already in the output (``--retry-failed`` re-runs the failed ones).
+failure (scene error, blow-up, overlap, timeout: ``--timeout``, one hour by default) is a row
+with status ``failed`` and its message and does not stop the sweep; a task whose worker dies is
+re-run elsewhere (Dask's retries), and on Linux its ``mps`` run dies with it. Results are written
+after each finished run; re-running a sweep skips the rows whose scene hash is already in the
+output (``--retry-failed`` re-runs the failed ones).
+
+The base scene is JSON, or TOML when its name ends in ``.toml``. Bad input (an option, a table
+row with more or fewer cells than the header, a duplicated column, a file that is not UTF-8, a
+base scene that does not parse, an output that is not results of this tool) is refused before
+anything runs: one line naming it, exit status 2.
 
 Example::
 
@@ -28,23 +34,54 @@ Example::
 from __future__ import annotations
 
 import argparse
+import codecs
 import copy
 import csv
 import hashlib
+import io
 import json
 import math
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_MPS = ROOT / "target" / "release" / "mps"
+# Seconds one run of mps may take before it is killed and its row failed. One hour is far above
+# the project's sweep runs (a full case 3 run, 1.7 s simulated, 5300 particles: 17 s on 2 idle
+# cores, 30-70 s on one thread of a loaded machine; BENCHMARKS.md) and still ends a stuck run
+# the same day; raise it with --timeout for larger scenes.
+DEFAULT_TIMEOUT_S = 3600.0
+
+
+class SweepError(ValueError):
+    """Bad input (an option, the table, the base scene, the output): the message names it."""
+
+
+def check_numbers(workers: int = 1, threads: int | None = None, timeout: float | None = None,
+                  retries: int = 0) -> None:
+    """Refuses a worker count or solver thread count below 1, a timeout that is not a finite
+    positive number of seconds (None: no timeout) and negative retries."""
+    def is_int(v):
+        return isinstance(v, int) and not isinstance(v, bool)
+
+    if not is_int(workers) or workers < 1:
+        raise SweepError(f"workers must be an integer of at least 1, got {workers!r}")
+    if threads is not None and (not is_int(threads) or threads < 1):
+        raise SweepError(f"threads must be an integer of at least 1, got {threads!r}")
+    if timeout is not None and (isinstance(timeout, bool) or not isinstance(timeout, (int, float))
+                                or not math.isfinite(timeout) or timeout <= 0):
+        raise SweepError(f"timeout must be a finite number of seconds above 0, got {timeout!r}")
+    if not is_int(retries) or retries < 0:
+        raise SweepError(f"retries must be an integer of at least 0, got {retries!r}")
 
 # ---------------------------------------------------------------------------------------------
 # Scene field paths
@@ -134,14 +171,135 @@ def scene_hash(scene: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def decode_utf8(data: bytes, what: str) -> str:
+    """``data`` as UTF-8 text (a byte-order mark is dropped); UTF-16/32, other encodings and NUL
+    characters are a SweepError naming ``what`` and the line."""
+    for bom, name in ((codecs.BOM_UTF32_LE, "UTF-32"), (codecs.BOM_UTF32_BE, "UTF-32"),
+                      (codecs.BOM_UTF16_LE, "UTF-16"), (codecs.BOM_UTF16_BE, "UTF-16")):
+        if data.startswith(bom):
+            raise SweepError(f"{what}: {name} text (byte-order mark {bom.hex()}), not UTF-8; "
+                             "save it as UTF-8")
+    if data.startswith(codecs.BOM_UTF8):
+        data = data[len(codecs.BOM_UTF8):]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[:e.start].count(b"\n") + 1
+        raise SweepError(f"{what}: not UTF-8 text (byte 0x{data[e.start]:02x} on line {line}); "
+                         "save it as UTF-8") from None
+    if "\0" in text:
+        line = text[:text.index("\0")].count("\n") + 1
+        raise SweepError(f"{what}: a NUL character on line {line} (UTF-16 without a byte-order "
+                         "mark, or not a text file?); save it as UTF-8 text")
+    return text
+
+
+def _not_json(node: Any, where: str = "") -> str | None:
+    """The path of the first value in ``node`` that JSON cannot hold (a TOML date or time)."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            hit = _not_json(v, f"{where}.{k}" if where else str(k))
+            if hit:
+                return hit
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            hit = _not_json(v, f"{where}[{i}]")
+            if hit:
+                return hit
+    elif not (node is None or isinstance(node, (str, int, float, bool))):
+        return where or "the scene"
+    return None
+
+
+def load_base(path: Path) -> dict:
+    """The base scene as a dict: TOML when the file name ends in ``.toml``, else JSON, as
+    ``mps run`` reads them (the runs get it as JSON). A missing file, text that is not UTF-8,
+    invalid JSON or TOML, a TOML date/time or a top level that is not an object is a SweepError
+    naming the file (and the line). Whether the scene itself is valid is for mps to say, run by
+    run."""
+    path = Path(path)
+    what = f"--base {path}"
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise SweepError(f"{what}: no such file") from None
+    except OSError as e:
+        raise SweepError(f"{what}: cannot read it ({e.strerror or e})") from None
+    text = decode_utf8(data, what)
+    if path.suffix == ".toml":
+        try:
+            scene = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise SweepError(f"{what}: not valid TOML: {e}") from None
+        bad = _not_json(scene)
+        if bad:
+            raise SweepError(f"{what}: {bad} is a TOML date/time, which no scene field takes")
+    else:
+        try:
+            scene = json.loads(text)
+        except json.JSONDecodeError as e:
+            hint = "" if text.lstrip()[:1] in ("{", "[") else " (a TOML scene needs the .toml extension)"
+            raise SweepError(f"{what}: not valid JSON: {e.msg} at line {e.lineno} column "
+                             f"{e.colno}{hint}") from None
+    if not isinstance(scene, dict):
+        raise SweepError(f"{what}: a scene is an object ({{...}}), this is a "
+                         f"{type(scene).__name__}")
+    return scene
+
+
+def _cells(n: int) -> str:
+    return f"{n} cell" if n == 1 else f"{n} cells"
+
+
 def read_table(path: Path) -> list[dict[str, Any]]:
-    """The variations table: one dict (column -> value) per row; blank cells are left out."""
-    with open(path, newline="") as f:
-        rows = []
-        for r in csv.DictReader(f):
-            rows.append({k.strip(): parse_value(v) for k, v in r.items() if k and v is not None and v.strip() != ""})
+    """The variations table, CSV in UTF-8: one dict (column -> value) per row. The header names
+    the columns (each once, none empty); every row has as many cells as the header. An empty
+    cell keeps the base scene's value (the column is left out of that row's dict); blank lines
+    and rows whose cells are all empty are skipped. Anything else is a SweepError naming the
+    file, the line and the data row (data row 1 is the record after the header)."""
+    path = Path(path)
+    what = f"--table {path}"
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise SweepError(f"{what}: cannot read it ({e.strerror or e})") from None
+    reader = csv.reader(io.StringIO(decode_utf8(data, what), newline=""), strict=True)
+    header: list[str] | None = None
+    record = 0  # data row: records after the header, blank ones included
+    rows: list[dict[str, Any]] = []
+    line = 1
+    try:
+        for cells in reader:
+            first, line = line, reader.line_num + 1  # first line of this record; of the next
+            if header is None:
+                if not any(c.strip() for c in cells):
+                    continue
+                header = [c.strip() for c in cells]
+                seen: dict[str, int] = {}
+                for i, name in enumerate(header, 1):
+                    if not name:
+                        raise SweepError(f"{what}: column {i} of the header (line {first}) has no "
+                                         "name")
+                    if name in seen:
+                        raise SweepError(f"{what}: the column {name!r} appears twice in the "
+                                         f"header (columns {seen[name]} and {i})")
+                    seen[name] = i
+                continue
+            record += 1
+            if not any(c.strip() for c in cells):
+                continue
+            if len(cells) != len(header):
+                n = len(header)
+                raise SweepError(f"{what}: line {first} (data row {record}) has "
+                                 f"{_cells(len(cells))}, the header has {n} column"
+                                 f"{'' if n == 1 else 's'}")
+            rows.append({k: parse_value(v) for k, v in zip(header, cells) if v.strip() != ""})
+    except csv.Error as e:
+        raise SweepError(f"{what}: line {line}: {e}") from None
+    if header is None:
+        raise SweepError(f"{what}: empty (no header)")
     if not rows:
-        raise SystemExit(f"error: the table {path} has no rows")
+        raise SweepError(f"{what}: no rows under the header")
     return rows
 
 
@@ -200,10 +358,48 @@ def _series_case3(rep: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _die_with_parent():
+    """On Linux, a ``preexec_fn`` that puts the child in a process group of its own and has the
+    kernel send it SIGKILL when the thread that started it ends (``prctl(PR_SET_PDEATHSIG)``), so
+    a run dies with its Dask worker even when the worker is killed with SIGKILL. None elsewhere
+    (or without prctl): the caller starts a new session instead, which still gives a group to
+    kill on timeout. The setting survives ``exec`` (a wrapper script that execs mps keeps it)
+    but not ``fork``: a wrapper should exec mps rather than start it as a child."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        import ctypes
+
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    parent = os.getpid()
+
+    def preexec():
+        os.setpgid(0, 0)
+        prctl(1, ctypes.c_ulong(signal.SIGKILL))  # PR_SET_PDEATHSIG
+        if os.getppid() != parent:  # the parent died before the prctl
+            os._exit(137)
+
+    return preexec
+
+
+def _kill_group(p: subprocess.Popen) -> None:
+    """SIGKILL to the run's process group (the program and whatever it started)."""
+    try:
+        os.killpg(p.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    except OSError:
+        p.kill()
+
+
 def run_scene(scene: dict, params: dict, mps: str, mode: str = "run", want_series: bool = False,
               timeout: float | None = None, threads: int | None = None) -> dict:
     """Writes ``scene`` to a temporary directory and runs ``mps`` on it; returns the result row
-    (never raises for a failed run: status ``failed`` and the message)."""
+    (never raises for a failed run: status ``failed`` and the message). ``timeout``: seconds,
+    then the run's process group is killed and the row failed (None: no limit). The run dies
+    with the process that called this (Linux; see ``_die_with_parent``)."""
     row: dict[str, Any] = dict(params)
     row["scene_hash"] = scene_hash(scene)
     row["status"] = "failed"
@@ -218,26 +414,41 @@ def run_scene(scene: dict, params: dict, mps: str, mode: str = "run", want_serie
             cmd = [mps, "case3", "--scene", str(path), "--json"]
         else:
             cmd = [mps, "run", str(path), "--out", str(Path(tmp) / "out"), "--json"]
+        env = dict(os.environ)
+        if threads is not None:
+            env["RAYON_NUM_THREADS"] = str(threads)
+        preexec = _die_with_parent()
+        group = {"preexec_fn": preexec} if preexec is not None else {"start_new_session": True}
         try:
-            env = dict(os.environ)
-            if threads:
-                env["RAYON_NUM_THREADS"] = str(threads)
-            p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
-        except subprocess.TimeoutExpired:
-            row["message"] = f"timeout after {timeout} s"
-            return row
+            p = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True, encoding="utf-8",
+                                 errors="replace", env=env, **group)
         except OSError as e:
             row["message"] = f"cannot run {mps}: {e}"
             return row
-        err = "\n".join(l for l in p.stderr.splitlines() if l.startswith("error"))
-        res = None
-        if p.stdout.strip():
+        with p:
             try:
-                res = json.loads(p.stdout)
+                stdout, stderr = p.communicate(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                _kill_group(p)
+                try:
+                    p.communicate(timeout=10)
+                except subprocess.TimeoutExpired:  # a process outside the group holds the pipes
+                    pass
+                row["message"] = f"timeout after {timeout:g} s"
+                return row
+            except BaseException:
+                _kill_group(p)
+                raise
+        err = "\n".join(l for l in stderr.splitlines() if l.startswith("error"))
+        res = None
+        if stdout.strip():
+            try:
+                res = json.loads(stdout)
             except ValueError:
                 res = None
         if res is None:
-            row["message"] = err or p.stderr.strip()[-500:] or f"exit code {p.returncode}, no output"
+            row["message"] = err or stderr.strip()[-500:] or f"exit code {p.returncode}, no output"
             return row
         if mode == "case3":
             rep = res[0] if isinstance(res, list) else res
@@ -318,14 +529,50 @@ def run_fmu(fmu_bytes: bytes, fmu_hash: str, params: dict, stop_time: float | No
 # Results file
 
 
+RESULT_KEYS = ("scene_hash", "status")
+
+
 def read_results(path: Path):
+    """The results already in ``path`` (none when there is no file or it is empty). A file that
+    cannot be read, or lacks the columns scene_hash and status (another tool's table, or not a
+    table), is a SweepError, and the file is left as it is. Results with other parameter or
+    figure columns (another table, another base scene) are kept: new rows are added to them."""
     import pandas as pd
 
-    if not path.exists():
+    path = Path(path)
+    what = f"--out {path}"
+    if path.is_dir():
+        raise SweepError(f"{what}: a folder; give the results file (.csv or .parquet) to write")
+    if not path.exists() or path.stat().st_size == 0:
         return pd.DataFrame()
-    if path.suffix == ".parquet":
-        return pd.read_parquet(path)
-    return pd.read_csv(path)
+    keep = "; it is left as it is: move it away or give another --out"
+    try:
+        if path.suffix == ".parquet":
+            df = pd.read_parquet(path)
+        else:
+            df = pd.read_csv(path, encoding="utf-8")
+    except Exception as e:  # noqa: BLE001 - pandas and pyarrow raise many kinds
+        reason = (str(e).strip().splitlines() or [type(e).__name__])[0][:200]
+        raise SweepError(f"{what}: an existing file that cannot be read as results ({reason})"
+                         f"{keep}") from None
+    missing = [c for c in RESULT_KEYS if c not in df.columns]
+    if missing:
+        raise SweepError(f"{what}: an existing file without the column"
+                         f"{'s' if len(missing) > 1 else ''} {', '.join(missing)} (not results "
+                         f"of this tool){keep}")
+    return df
+
+
+def _make_folder(folder: Path, what: str) -> None:
+    """Creates ``folder`` (and its parents); SweepError naming ``what`` when it cannot."""
+    if folder.exists() and not folder.is_dir():
+        raise SweepError(f"{what}: {folder} is not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise SweepError(f"{what}: cannot create the folder {folder} ({e.strerror or e})") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise SweepError(f"{what}: cannot write in the folder {folder}")
 
 
 def write_results(path: Path, rows: list[dict], columns_first: list[str]) -> None:
@@ -365,15 +612,18 @@ def make_client(scheduler: str | None, workers: int, processes: bool = True):
 def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path | None = None,
           client=None, scheduler: str | None = None, workers: int = 2, mode: str = "run",
           mps: Path = DEFAULT_MPS, series: Path | None = None, retries: int = 2,
-          timeout: float | None = None, retry_failed: bool = False, stop_time: float | None = None,
+          timeout: float | None = DEFAULT_TIMEOUT_S, retry_failed: bool = False, stop_time: float | None = None,
           step_size: float | None = None, processes: bool = True, progress: bool = True,
           threads: int | None = None):
-    """Runs every row of ``table`` not already in ``out``; returns the results DataFrame."""
+    """Runs every row of ``table`` not already in ``out``; returns the results DataFrame.
+    ``timeout``: seconds per run of mps (None: none). Bad input raises SweepError."""
     from distributed import as_completed
-    import pandas as pd
 
     if (base is None) == (fmu is None):
         raise ValueError("give exactly one of base (a scene) or fmu")
+    check_numbers(workers, threads, timeout, retries)
+    out = Path(out)
+    series = Path(series) if series is not None else None
     params_cols = sorted({k for r in table for k in r})
     first = params_cols + ["scene_hash", "status", "message"]
 
@@ -381,7 +631,7 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
     jobs = []
     prebuilt: list[dict] = []
     if base is not None:
-        base_scene = json.loads(Path(base).read_text())
+        base_scene = load_base(base)
         for params in table:
             scene = copy.deepcopy(base_scene)
             try:
@@ -402,6 +652,9 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
             jobs.append((hashlib.sha256(key.encode()).hexdigest(), params, None))
 
     done = read_results(out)
+    _make_folder(out.parent, f"--out {out}")
+    if series is not None:
+        _make_folder(series, f"--series {series}")
     rows: list[dict] = done.to_dict("records") if len(done) else []
     if retry_failed and rows:
         rows = [r for r in rows if r.get("status") == "ok"]
@@ -421,8 +674,6 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
     skipped = len(jobs) - len(todo)
     print(f"sweep: {len(table)} rows, {skipped} already in {out} (or repeated), {len(todo)} to run",
           file=sys.stderr)
-    if series is not None:
-        series.mkdir(parents=True, exist_ok=True)
     if not todo:
         if changed or not out.exists():
             write_results(out, rows, first)
@@ -539,17 +790,41 @@ def plot(df, x: str, ys: list[str], path: Path, hue: str | None = None) -> None:
 # ---------------------------------------------------------------------------------------------
 
 
-def main(argv: list[str] | None = None) -> int:
+def _int_at_least(low: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds above 0, got {text}")
+    return value
+
+
+def make_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--base", type=Path, help="base scene (JSON)")
+    src.add_argument("--base", type=Path, help="base scene (JSON; TOML if it ends in .toml)")
     src.add_argument("--fmu", type=Path, help="FMU to simulate with fmpy (columns: parameter names)")
     ap.add_argument("--table", type=Path, required=True,
                     help="CSV of variations, one column per field path or FMU parameter")
     ap.add_argument("--out", type=Path, required=True, help="results .csv or .parquet")
     ap.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:8786)")
-    ap.add_argument("--workers", type=int, default=max(1, os.cpu_count() or 1),
+    ap.add_argument("--workers", type=_int_at_least(1), default=max(1, os.cpu_count() or 1),
                     help="LocalCluster workers (default: the number of cores)")
     ap.add_argument("--mode", choices=["run", "case3"], default="run",
                     help="run: `mps run` (probes, frequency, peak); case3: `mps case3 --scene` "
@@ -557,11 +832,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mps", type=Path, default=Path(os.environ.get("MPS_BIN", DEFAULT_MPS)),
                     help="the mps program (on a cluster: its path on the workers)")
     ap.add_argument("--series", type=Path, help="write each run's series to DIR/<hash>.csv")
-    ap.add_argument("--threads", type=int,
+    ap.add_argument("--threads", type=_int_at_least(1),
                     help="solver threads per run (RAYON_NUM_THREADS; default: all cores; "
                          "cores / workers avoids oversubscription)")
-    ap.add_argument("--retries", type=int, default=2, help="re-runs of a task whose worker died")
-    ap.add_argument("--timeout", type=float, help="seconds per run (then: failed)")
+    ap.add_argument("--retries", type=_int_at_least(0), default=2,
+                    help="re-runs of a task that raised (default: 2)")
+    ap.add_argument("--timeout", type=_seconds, default=DEFAULT_TIMEOUT_S,
+                    help="seconds per run of mps; a run still going then is killed and its row "
+                         f"failed (default: {DEFAULT_TIMEOUT_S:g}; raise it for long runs)")
     ap.add_argument("--retry-failed", action="store_true", help="re-run rows recorded as failed")
     ap.add_argument("--stop-time", type=float, help="FMU: stop time (s)")
     ap.add_argument("--step-size", type=float, help="FMU: communication step (s)")
@@ -570,6 +848,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--y", action="append", default=[], help="plot: y column (repeatable)")
     ap.add_argument("--hue", help="plot: one line per value of this column")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = make_parser()
     a = ap.parse_args(argv)
     if a.out.suffix not in (".csv", ".parquet"):
         ap.error(f"--out must end in .csv or .parquet, got {a.out}")
@@ -583,15 +866,23 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--mps {a.mps}: no such program (cargo build --release)")
     if a.plot and (not a.x or not a.y):
         ap.error("--plot needs --x and at least one --y")
-    table = read_table(a.table)
-    df = sweep(table, a.out, base=a.base, fmu=a.fmu, scheduler=a.scheduler, workers=a.workers,
-               mode=a.mode, mps=Path(a.mps).resolve() if not a.scheduler else a.mps,
-               series=a.series, retries=a.retries, timeout=a.timeout,
-               retry_failed=a.retry_failed, stop_time=a.stop_time, step_size=a.step_size,
-               progress=not a.quiet, threads=a.threads)
+    try:
+        table = read_table(a.table)
+        if a.plot:
+            _make_folder(a.plot.parent, f"--plot {a.plot}")
+        df = sweep(table, a.out, base=a.base, fmu=a.fmu, scheduler=a.scheduler, workers=a.workers,
+                   mode=a.mode, mps=Path(a.mps).resolve() if not a.scheduler else a.mps,
+                   series=a.series, retries=a.retries, timeout=a.timeout,
+                   retry_failed=a.retry_failed, stop_time=a.stop_time, step_size=a.step_size,
+                   progress=not a.quiet, threads=a.threads)
+    except SweepError as e:  # bad input: one line, argparse's status 2, no traceback
+        ap.exit(2, f"{ap.prog}: error: {e}\n")
     n_ok = int((df["status"] == "ok").sum()) if len(df) else 0
     print(f"sweep: {n_ok} ok, {len(df) - n_ok} failed, results in {a.out}", file=sys.stderr)
     if a.plot:
+        if a.x not in df.columns:
+            ap.exit(2, f"{ap.prog}: error: --x {a.x}: not a column of the results in {a.out} "
+                       "(the table's columns, and the figures of the runs that went well)\n")
         plot(df, a.x, a.y, a.plot, a.hue)
         print(f"sweep: plot {a.plot}", file=sys.stderr)
     return 0

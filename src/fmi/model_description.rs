@@ -312,7 +312,8 @@ fn model_description_xml_dated(scene: &Scene, date: Option<&str>) -> String {
     s
 }
 
-#[cfg(test)]
+// The scene builders of the paper's cases are study code (feature `studies`).
+#[cfg(all(test, feature = "studies"))]
 mod tests {
     use super::*;
     use crate::physics::ElasticModel;

@@ -702,7 +702,8 @@ fn body(scene: &mut Scene, b: usize) -> Result<&mut crate::scene::Body, String> 
         .ok_or_else(|| format!("no body {b}"))
 }
 
-#[cfg(test)]
+// The scene builders of the paper's cases are study code (feature `studies`).
+#[cfg(all(test, feature = "studies"))]
 mod range_tests {
     use super::*;
     use crate::physics::ElasticModel;
@@ -771,7 +772,8 @@ mod range_tests {
     }
 }
 
-#[cfg(test)]
+// The scene builders of the paper's cases are study code (feature `studies`).
+#[cfg(all(test, feature = "studies"))]
 mod tests {
     use super::*;
     use crate::physics::ElasticModel;

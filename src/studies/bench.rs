@@ -77,11 +77,16 @@ pub fn run_row(case: u8, dp: f64, dt: Option<f64>) -> Result<Row, String> {
 /// Force-loop throughput on one thread: directed bonds per second per force pass (case 2,
 /// dp = 0.025, 300 steps, with `model`).
 pub fn single_thread_throughput(model: ElasticModel) -> Result<f64, String> {
+    #[cfg(feature = "parallel")]
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .map_err(|e| e.to_string())?;
-    pool.install(|| {
+    #[cfg(feature = "parallel")]
+    let install = |f: &dyn Fn() -> Result<f64, String>| pool.install(f);
+    #[cfg(not(feature = "parallel"))]
+    let install = |f: &dyn Fn() -> Result<f64, String>| f();
+    install(&|| {
         let mut sim = Simulation::new(&case2_scene(0.025, model, None, Support::Face))
             .map_err(|e| e.to_string())?;
         let dt = sim.max_dt();

@@ -261,7 +261,7 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
         } => {
             use mps_solid::studies::bench;
             let front = bench::bending_front(quick, fine)?;
-            let front_md = bench::bending_markdown(&front, rayon::current_num_threads());
+            let front_md = bench::bending_markdown(&front, threads());
             if let Some(p) = &plot {
                 bench::write_front_png(&front, p)?;
             }
@@ -305,14 +305,7 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
                     .map(|&f| (f, bench::stability_probe(f)))
                     .collect()
             };
-            let md = bench::markdown(
-                &rows,
-                &single,
-                &stability,
-                fmu,
-                rayon::current_num_threads(),
-            ) + "\n"
-                + &front_md;
+            let md = bench::markdown(&rows, &single, &stability, fmu, threads()) + "\n" + &front_md;
             println!("{md}");
             if let Some(path) = out {
                 std::fs::write(&path, md)
@@ -545,4 +538,12 @@ fn figure9_subtitle(s: &Scene) -> String {
         snake(format!("{:?}", s.solver.model)),
         snake(format!("{:?}", s.solver.bond_strain)),
     )
+}
+
+/// Worker threads of the solver (1 without the `parallel` feature).
+fn threads() -> usize {
+    #[cfg(feature = "parallel")]
+    return rayon::current_num_threads();
+    #[cfg(not(feature = "parallel"))]
+    1
 }

@@ -13,6 +13,7 @@ pub mod params;
 pub mod particles;
 pub mod sbp;
 pub mod second_order;
+pub mod shape;
 pub mod world;
 
 /// Brings rayon's parallel-iterator traits into scope when the `parallel` feature is on.

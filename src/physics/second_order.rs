@@ -41,6 +41,7 @@ use super::law;
 use super::par::*;
 use super::params::MaterialLaw;
 use super::particles::Particles;
+use super::shape::{shape_pinv, shape_tensor};
 use crate::par_iter_mut;
 
 /// Smallest ratio of the smallest to the largest singular value of the (scaled) moment matrix
@@ -410,8 +411,8 @@ where
             None => {
                 // First-order corrected gradient (pseudo-inverse of the shape tensor) and no
                 // Hessian: exact for linear fields in the span of the remaining bonds.
-                let k = super::elastic::shape_tensor(bonds, i);
-                let k_inv = super::elastic::shape_pinv(&k);
+                let k = shape_tensor(bonds, i);
+                let k_inv = shape_pinv(&k);
                 for b in range {
                     let w0 = self.weight(bonds, b);
                     let r0 = bonds.r0[b];

@@ -3,6 +3,7 @@
 //! sums over its own bonds and writes only its own force, so results do not depend on threads.
 use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
+use super::ghosts::{Follower, Ghost};
 use super::law;
 #[allow(unused_imports)]
 use super::par::*;
@@ -87,8 +88,8 @@ where
         bonds: &Bonds<D>,
         n_particles: usize,
         rigid: &[bool],
-        ghosts: &[super::second_order::Ghost<D>],
-        followers: &[super::second_order::Follower],
+        ghosts: &[Ghost<D>],
+        followers: &[Follower],
         walls: &[bool],
     ) -> Self {
         let mut op = ElasticOperator {

@@ -6,6 +6,7 @@ pub mod contact;
 pub mod dim;
 pub mod elastic;
 pub mod fracture;
+pub mod ghosts;
 pub mod grid;
 pub mod integrate;
 pub mod law;

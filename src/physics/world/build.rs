@@ -9,10 +9,10 @@ use crate::physics::boundary::{BoundaryGroup, GravityLaw, GroupMotion, LoadRegio
 use crate::physics::contact::Contact;
 use crate::physics::dim::{Dim, Space, Vect};
 use crate::physics::elastic::{ElasticOperator, ElasticScratch};
+use crate::physics::ghosts::LUMP;
 use crate::physics::params::{ElasticModel, Material, MaterialLaw, SolverOptions};
 use crate::physics::particles::{Particles, FIX_AXIS, FIX_ROT};
 use crate::physics::sbp;
-use crate::physics::second_order::LUMP;
 
 /// Significant bits of the particle spacing that coordinates must keep: a reference vector
 /// X_j - X_i is then exact to 2^-20 (1e-6) of l0, and the lattice of a body far from the origin

@@ -2,9 +2,9 @@
 //! particles) and the followers that replace the ghosts of clamped faces.
 use super::SimError;
 use crate::physics::dim::{Dim, Space, Vect};
+use crate::physics::ghosts::{Follower, Ghost};
 use crate::physics::params::ElasticModel;
 use crate::physics::particles::Particles;
-use crate::physics::second_order::{Follower, Ghost};
 
 /// A boundary face across which a group mirrors its body (m; the normal of any length).
 ///
@@ -23,7 +23,7 @@ pub struct MirrorFace {
 }
 
 /// Splits the ghosts of clamped mirror faces (all axes held) off: the first layer of the body
-/// at such a face follows the two layers behind it (`second_order::Follower`), and the face's
+/// at such a face follows the two layers behind it (`ghosts::Follower`), and the face's
 /// members become walls that enter no fit. Returns (the other ghosts, the followers, the walls).
 #[allow(clippy::type_complexity)]
 pub(super) fn clamp_followers<const D: usize>(

@@ -25,9 +25,9 @@ use super::boundary::{BoundaryGroup, GravityLaw, LoadRegion};
 use super::contact::Contact;
 use super::dim::{Dim, Space, Vect};
 use super::elastic::{ElasticOperator, ElasticScratch};
+pub use super::ghosts::Ghost;
 use super::params::{Material, SolverOptions};
 use super::particles::Particles;
-pub use super::second_order::Ghost;
 
 /// Errors of the solver; each says what happened, when and where.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

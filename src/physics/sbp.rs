@@ -17,7 +17,7 @@
 //! Mirror faces are interior to the body's mirrored extension, which is the box the closure is
 //! built on, in the lattice's own frame (a turned body gets the same closure, volumes and stable
 //! step). A clamped face is a face of that box whose extrapolation R is the followers'
-//! constraint along its normal (`second_order::Follower`), so that its face term vanishes for
+//! constraint along its normal (`ghosts::Follower`), so that its face term vanishes for
 //! every motion the clamp admits. Bodies that are not a filled lattice box (after mirroring)
 //! keep the plain fits.
 //!

@@ -3,12 +3,14 @@
 //! sums over its own bonds and writes only its own force, so results do not depend on threads.
 use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
+use super::ghosts::{Follower, Ghost};
 use super::law;
 #[allow(unused_imports)]
 use super::par::*;
 use super::params::{ElasticModel, Material, MaterialLaw};
 use super::particles::Particles;
 use super::second_order::{Cells, SecondOrder, SecondOrderScratch};
+pub use super::shape::{shape_pinv, shape_tensor, SHAPE_MIN_CONDITION};
 use crate::par_iter_mut;
 
 /// Precomputed constants of the elastic operator.
@@ -86,8 +88,8 @@ where
         bonds: &Bonds<D>,
         n_particles: usize,
         rigid: &[bool],
-        ghosts: &[super::second_order::Ghost<D>],
-        followers: &[super::second_order::Follower],
+        ghosts: &[Ghost<D>],
+        followers: &[Follower],
         walls: &[bool],
     ) -> Self {
         let mut op = ElasticOperator {
@@ -536,41 +538,4 @@ where
         }
         total
     }
-}
-
-/// Smallest eigenvalue of a shape tensor, relative to its largest, along which a particle's
-/// bonds measure strain; directions below it are outside the neighbourhood's span (the span
-/// projector drops them, as for a single layer of particles).
-///
-/// Why (issue 7, `tests/energy_fracture.rs`): a particle that lost most of its bonds on one
-/// side keeps a direction only a few nearly perpendicular bonds reach. With the round-off
-/// threshold (1e-10) K^-1 amplified the bonds' motion along it without bound and the re-fit at
-/// the break raised the particle's strain energy (25 J -> 70 J at fixed positions on two broken
-/// pairs of the small2d impact; +16 % to +21 % total energy below the automatic step). Intact
-/// lattice neighbourhoods are far above it: their smallest ratio is 0.57 in 2D and 0.47 in 3D
-/// (blocks and plates two particles thick,
-/// `tests/energy_fracture.rs::intact_neighbourhoods_keep_their_full_span`); 0.01 and 0.05 both
-/// stop the energy creation of the impacts (0.2 cuts directions that still carry strain and
-/// creates energy again: +11 % at the automatic step), 0.05 with the larger margin.
-pub const SHAPE_MIN_CONDITION: f64 = 0.05;
-
-/// Pseudo-inverse of a shape tensor with the directions below [`SHAPE_MIN_CONDITION`] dropped.
-pub fn shape_pinv<const D: usize>(k: &Mat<D>) -> Mat<D> {
-    super::dim::sym_pinv_above(k, SHAPE_MIN_CONDITION)
-}
-
-/// Shape tensor K_i = sum_j w0/|r0|^2 r0 r0^T over the intact bonds, formed with the same
-/// expression as the deformation-gradient sum, so that F = G K^-1 is the identity to round-off
-/// in the reference state.
-pub fn shape_tensor<const D: usize>(bonds: &Bonds<D>, i: usize) -> Mat<D> {
-    let mut k = Mat::<D>::zeros();
-    for b in bonds.of(i) {
-        let w0 = bonds.w0[b];
-        if w0 == 0.0 {
-            continue;
-        }
-        let r0 = bonds.r0[b];
-        k += (r0 * (w0 / r0.norm_squared())) * r0.transpose();
-    }
-    k
 }

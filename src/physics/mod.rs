@@ -6,6 +6,7 @@ pub mod contact;
 pub mod dim;
 pub mod elastic;
 pub mod fracture;
+pub mod ghosts;
 pub mod grid;
 pub mod integrate;
 pub mod law;
@@ -13,6 +14,7 @@ pub mod params;
 pub mod particles;
 pub mod sbp;
 pub mod second_order;
+pub mod shape;
 pub mod world;
 
 /// Brings rayon's parallel-iterator traits into scope when the `parallel` feature is on.

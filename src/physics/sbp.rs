@@ -17,7 +17,7 @@
 //! Mirror faces are interior to the body's mirrored extension, which is the box the closure is
 //! built on, in the lattice's own frame (a turned body gets the same closure, volumes and stable
 //! step). A clamped face is a face of that box whose extrapolation R is the followers'
-//! constraint along its normal (`second_order::Follower`), so that its face term vanishes for
+//! constraint along its normal (`ghosts::Follower`), so that its face term vanishes for
 //! every motion the clamp admits. Bodies that are not a filled lattice box (after mirroring)
 //! keep the plain fits.
 //!
@@ -32,9 +32,10 @@ use std::collections::HashMap;
 
 use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
+use super::ghosts::{Ghost, FACE_EXTRAPOLATION};
 #[allow(unused_imports)]
 use super::par::*;
-use super::second_order::{Ghost, SecondOrder, FACE_EXTRAPOLATION};
+use super::second_order::{self, SecondOrder};
 use crate::par_iter_mut;
 
 /// End corrections of the cell-centred midpoint rule on the first three layers from a face:
@@ -628,7 +629,7 @@ where
         let n = bonds.start.len() - 1;
         let mut sys = NullSpaceConstraints {
             bonds,
-            mirror: super::second_order::mirror_index(bonds),
+            mirror: second_order::mirror_index(bonds),
             mono,
             gram_inv,
             l0,

@@ -36,11 +36,13 @@ use nalgebra::DMatrix;
 
 use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
+pub use super::ghosts::{Follower, Ghost, FACE_EXTRAPOLATION, FOLLOW, LUMP};
 use super::law;
 #[allow(unused_imports)]
 use super::par::*;
 use super::params::MaterialLaw;
 use super::particles::Particles;
+use super::shape::{shape_pinv, shape_tensor};
 use crate::par_iter_mut;
 
 /// Smallest ratio of the smallest to the largest singular value of the (scaled) moment matrix
@@ -96,73 +98,6 @@ pub struct SecondOrder<const D: usize> {
     /// Whether particle i's weights carry the closure now (closable and none of its bonds
     /// broken). Its volume then integrates the energy exactly, so it has no cell term.
     pub closed: Vec<bool>,
-}
-
-/// A group member at the mirror image of a free particle (its master) across a mirror face.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ghost<const D: usize> {
-    pub ghost: u32,
-    pub master: u32,
-    /// Per axis -1 (held by the group: odd, u_g = 2 u_group - u_m) or +1 (free: even, u_g = u_m).
-    pub parity: Vect<D>,
-}
-
-impl<const D: usize> Ghost<D> {
-    /// The ghost's displacement (or velocity) in the fits from its own prescribed value `own`
-    /// (the group's motion) and its master's `master`.
-    #[inline(always)]
-    pub fn reflect(&self, own: &Vect<D>, master: &Vect<D>) -> Vect<D> {
-        Vect::<D>::from_fn(|k, _| {
-            if self.parity[k] < 0.0 {
-                2.0 * own[k] - master[k]
-            } else {
-                master[k]
-            }
-        })
-    }
-}
-
-/// Extrapolation to a face of the quadratic through the layers at l0/2, 3 l0/2, 5 l0/2 from it
-/// (Lagrange weights at 0): the clamped face's term in the closure (module `sbp`).
-pub const FACE_EXTRAPOLATION: [f64; 3] = [15.0 / 8.0, -5.0 / 4.0, 3.0 / 8.0];
-
-/// Weights of a follower's displacement on (its clamp's motion, the second layer, the third
-/// layer) along the face's normal: the values for which FACE_EXTRAPOLATION gives the clamp's
-/// motion on the face (8/15, 2/3, -1/5).
-pub const FOLLOW: [f64; 3] = [
-    1.0 / FACE_EXTRAPOLATION[0],
-    -FACE_EXTRAPOLATION[1] / FACE_EXTRAPOLATION[0],
-    -FACE_EXTRAPOLATION[2] / FACE_EXTRAPOLATION[0],
-];
-
-/// Shares of a follower's mass that the second and third layer carry: the diagonal of the
-/// constraint's mass matrix S^T M S (FOLLOW[1]^2, FOLLOW[2]^2), so that the followed layers'
-/// stiffness, which the constraint raises by about those shares, has the inertia that goes with
-/// it and the stable step does not shrink.
-pub const LUMP: [f64; 2] = [FOLLOW[1] * FOLLOW[1], FOLLOW[2] * FOLLOW[2]];
-
-/// A particle of the first layer at a clamped face: it follows the two layers behind it and the
-/// clamp (its wall particle at the mirror image carries the clamp's motion and the reaction).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Follower {
-    pub particle: u32,
-    /// The clamp's member at the particle's mirror image (its motion, its share of the reaction).
-    pub wall: u32,
-    /// The particles l0 and 2 l0 further in along the face's normal.
-    pub inner: [u32; 2],
-}
-
-impl Follower {
-    /// The follower's value of a field f (displacement or velocity).
-    #[inline(always)]
-    pub fn follow<T>(&self, f: impl Fn(usize) -> T) -> T
-    where
-        T: std::ops::Mul<f64, Output = T> + std::ops::Add<Output = T>,
-    {
-        f(self.wall as usize) * FOLLOW[0]
-            + f(self.inner[0] as usize) * FOLLOW[1]
-            + f(self.inner[1] as usize) * FOLLOW[2]
-    }
 }
 
 /// Scratch of the force passes.
@@ -410,8 +345,8 @@ where
             None => {
                 // First-order corrected gradient (pseudo-inverse of the shape tensor) and no
                 // Hessian: exact for linear fields in the span of the remaining bonds.
-                let k = super::elastic::shape_tensor(bonds, i);
-                let k_inv = super::elastic::shape_pinv(&k);
+                let k = shape_tensor(bonds, i);
+                let k_inv = shape_pinv(&k);
                 for b in range {
                     let w0 = self.weight(bonds, b);
                     let r0 = bonds.r0[b];
@@ -879,31 +814,5 @@ where
             total += Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared()).0;
         }
         total
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{FACE_EXTRAPOLATION, FOLLOW};
-
-    /// The face extrapolation is exact for quadratics through the layers at 1/2, 3/2, 5/2 (in
-    /// l0) and the follower's weights invert it: both to round-off (1e-15).
-    #[test]
-    fn face_extrapolation_is_exact_for_quadratics_and_followers_invert_it() {
-        let x = [0.5, 1.5, 2.5];
-        for p in 0..3 {
-            let at_face: f64 = FACE_EXTRAPOLATION
-                .iter()
-                .zip(x)
-                .map(|(w, xi)| w * f64::powi(xi, p))
-                .sum();
-            let exact = if p == 0 { 1.0 } else { 0.0 };
-            assert!((at_face - exact).abs() < 1e-15, "x^{p}: {at_face}");
-        }
-        // u_face = E0 u1 + E1 u2 + E2 u3 with u1 = F0 u_face + F1 u2 + F2 u3, for all u.
-        let e = FACE_EXTRAPOLATION;
-        assert!((e[0] * FOLLOW[0] - 1.0).abs() < 1e-15);
-        assert!((e[0] * FOLLOW[1] + e[1]).abs() < 1e-15);
-        assert!((e[0] * FOLLOW[2] + e[2]).abs() < 1e-15);
     }
 }

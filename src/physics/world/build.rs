@@ -1,0 +1,381 @@
+//! Construction of a world: World::new (particles, bonds, groups and mirror faces, the
+//! operators and the summation-by-parts closure, the first measurement of the stable step)
+//! and the checks of its input.
+use super::mirror::{clamp_followers, find_ghosts};
+use super::stable_step::{StableStepState, OMEGA_MARGIN};
+use super::{BodyInit, GroupInit, InitialVelocity, MirrorFace, SimError, World};
+use crate::physics::bonds::{lattice_neighbours, lattice_number_density, Bonds};
+use crate::physics::boundary::{BoundaryGroup, GravityLaw, GroupMotion, LoadRegion};
+use crate::physics::contact::Contact;
+use crate::physics::dim::{Dim, Space, Vect};
+use crate::physics::elastic::{ElasticOperator, ElasticScratch};
+use crate::physics::ghosts::LUMP;
+use crate::physics::params::{ElasticModel, Material, MaterialLaw, SolverOptions};
+use crate::physics::particles::{Particles, FIX_AXIS, FIX_ROT};
+use crate::physics::sbp;
+
+/// Significant bits of the particle spacing that coordinates must keep: a reference vector
+/// X_j - X_i is then exact to 2^-20 (1e-6) of l0, and the lattice of a body far from the origin
+/// differs from the same lattice at the origin by no more than that.
+pub const MIN_SPACING_BITS: i32 = 20;
+
+/// Refuses a body whose coordinates are too large to resolve the particle spacing: far from the
+/// origin, adjacent doubles are farther apart than 2^-MIN_SPACING_BITS l0, so particles would
+/// be misplaced or coincide. The displacements are relative and keep full precision anywhere;
+/// only the reference lattice is limited by where the scene puts it.
+fn check_resolution<const D: usize>(
+    b: usize,
+    name: &str,
+    points: &[Vect<D>],
+    l0: f64,
+) -> Result<(), SimError> {
+    let far = points.iter().flat_map(|p| p.iter()).fold(0.0f64, |a, c| {
+        if c.is_finite() {
+            a.max(c.abs())
+        } else {
+            f64::INFINITY
+        }
+    });
+    // Spacing of adjacent doubles near `far`, bounded above by far * eps.
+    let ulp = far * f64::EPSILON;
+    // Written so that a NaN or infinite coordinate (far = inf) is refused as well.
+    let resolved = ulp <= l0 * 2f64.powi(-MIN_SPACING_BITS);
+    if !resolved {
+        let bits = (l0 / ulp).log2().floor().max(0.0);
+        return Err(SimError::Invalid(format!(
+            "body '{name}' (bodies[{b}]): a coordinate of {far:.3e} m leaves only {bits} significant bits for the particle spacing {l0:.3e} m (at least {MIN_SPACING_BITS} are needed; positions there are rounded to {ulp:.1e} m); place the body nearer the origin"
+        )));
+    }
+    Ok(())
+}
+
+impl<const D: usize> World<D>
+where
+    Space: Dim<D>,
+{
+    /// Builds the particles, finds the bonds, precomputes the operators, measures the stable
+    /// step and evaluates the forces of the initial state.
+    pub fn new(
+        l0: f64,
+        options: SolverOptions,
+        bodies: Vec<BodyInit<D>>,
+        groups: Vec<GroupInit>,
+        loads: Vec<(String, Vec<u32>)>,
+        gravity: GravityLaw<D>,
+    ) -> Result<Self, SimError> {
+        let re = options.re_factor * l0;
+        let mut p = Particles::<D> {
+            x0: vec![],
+            u: vec![],
+            x: vec![],
+            v: vec![],
+            q: vec![],
+            w: vec![],
+            body: vec![],
+            mass: vec![],
+            inertia: vec![],
+            fix: vec![],
+            n_ref: vec![],
+        };
+        for (b, body) in bodies.iter().enumerate() {
+            check_resolution(b, &body.name, &body.points, l0)?;
+            if let InitialVelocity::PerParticle { v, w } = &body.velocity {
+                if v.len() != body.points.len() || w.len() != body.points.len() {
+                    return Err(SimError::Invalid(format!(
+                        "body '{}' (bodies[{b}]) has {} points but {} initial velocities and {} angular velocities",
+                        body.name,
+                        body.points.len(),
+                        v.len(),
+                        w.len()
+                    )));
+                }
+            }
+            let finite = match &body.velocity {
+                InitialVelocity::Uniform(v) => v.iter().all(|c| c.is_finite()),
+                InitialVelocity::PerParticle { v, w } => {
+                    v.iter().all(|v| v.iter().all(|c| c.is_finite()))
+                        && w.iter().all(<Space as Dim<D>>::ang_finite)
+                }
+            };
+            if !finite {
+                return Err(SimError::Invalid(format!(
+                    "body '{}' (bodies[{b}]): an initial velocity is not finite",
+                    body.name
+                )));
+            }
+        }
+        if matches!(
+            options.model,
+            ElasticModel::Paper | ElasticModel::PaperLocal
+        ) {
+            if let Some((b, body)) = bodies
+                .iter()
+                .enumerate()
+                .find(|(_, b)| b.material.law != MaterialLaw::SaintVenantKirchhoff)
+            {
+                return Err(SimError::Invalid(format!(
+                    "body '{}' (bodies[{b}]): material.law = {} needs an operator with a strain energy density (solver.model corrected or second_order); the paper's spring operators have none",
+                    body.name,
+                    body.material.law.name()
+                )));
+            }
+        }
+        let total: usize = bodies.iter().map(|b| b.points.len()).sum();
+        let oom = |e: std::collections::TryReserveError| {
+            SimError::OutOfMemory(format!(
+                "cannot allocate the arrays of {total} particles: {e}"
+            ))
+        };
+        p.x0.try_reserve_exact(total).map_err(oom)?;
+        p.u.try_reserve_exact(total).map_err(oom)?;
+        p.x.try_reserve_exact(total).map_err(oom)?;
+        p.v.try_reserve_exact(total).map_err(oom)?;
+        p.q.try_reserve_exact(total).map_err(oom)?;
+        p.w.try_reserve_exact(total).map_err(oom)?;
+        p.body.try_reserve_exact(total).map_err(oom)?;
+        p.mass.try_reserve_exact(total).map_err(oom)?;
+        p.inertia.try_reserve_exact(total).map_err(oom)?;
+        p.fix.try_reserve_exact(total).map_err(oom)?;
+        let volume = l0.powi(D as i32);
+        // Operators with particle rotations take the given angular velocities (see
+        // InitialVelocity::PerParticle).
+        let rotational = matches!(
+            options.model,
+            ElasticModel::Paper | ElasticModel::PaperLocal
+        );
+        for (b, body) in bodies.iter().enumerate() {
+            let m = body.material.density * volume;
+            for (k, pt) in body.points.iter().enumerate() {
+                let (v, w) = match &body.velocity {
+                    InitialVelocity::Uniform(v) => (*v, <Space as Dim<D>>::ang_zero()),
+                    InitialVelocity::PerParticle { v, w } => (
+                        v[k],
+                        if rotational {
+                            w[k]
+                        } else {
+                            <Space as Dim<D>>::ang_zero()
+                        },
+                    ),
+                };
+                p.x0.push(*pt);
+                p.u.push(Vect::<D>::zeros());
+                p.x.push(*pt);
+                p.v.push(v);
+                p.q.push(<Space as Dim<D>>::identity());
+                p.w.push(w);
+                p.body.push(b as u32);
+                p.mass.push(m);
+                p.inertia.push(<Space as Dim<D>>::particle_inertia(m, l0));
+                p.fix.push(0);
+            }
+        }
+        let n = p.len();
+        if n == 0 {
+            return Err(SimError::Invalid("the scene has no particles".into()));
+        }
+        let bonds = Bonds::try_build(&p.x0, &p.body, re, lattice_neighbours::<D>(l0, re))
+            .map_err(|e| SimError::OutOfMemory(format!("cannot allocate the bonds: {e}")))?;
+        p.n_ref = (0..n)
+            .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
+            .collect();
+        let n0 = lattice_number_density::<D>(l0, re);
+        let materials: Vec<Material> = bodies.iter().map(|b| b.material).collect();
+        let mut group_of = vec![u32::MAX; n];
+        let mut gs = Vec::new();
+        let mut mirrors: Vec<(usize, MirrorFace, [bool; 3])> = Vec::new();
+        for (gi, g) in groups.into_iter().enumerate() {
+            for &i in &g.members {
+                let i = i as usize;
+                if i >= n {
+                    return Err(SimError::Invalid(format!(
+                        "group '{}' names particle {i} of {n}",
+                        g.name
+                    )));
+                }
+                group_of[i] = gi as u32;
+                // A held axis starts at rest (its motion law has no rate at t = 0), as does a
+                // held rotation.
+                for (k, (held, bit)) in g.axes.iter().zip(FIX_AXIS).take(D).enumerate() {
+                    if *held {
+                        p.fix[i] |= bit;
+                        p.v[i][k] = 0.0;
+                    }
+                }
+                if g.fix_rotation {
+                    p.fix[i] |= FIX_ROT;
+                    p.w[i] = <Space as Dim<D>>::ang_zero();
+                }
+            }
+            if let Some(face) = g.mirror {
+                mirrors.push((gi, face, g.axes));
+            }
+            gs.push(BoundaryGroup {
+                name: g.name,
+                members: g.members,
+                axes: g.axes,
+                fix_rotation: g.fix_rotation,
+                motion: GroupMotion::default(),
+                reaction: Vect::<D>::zeros(),
+            });
+        }
+        let all_axes: u8 = FIX_AXIS.iter().take(D).fold(0, |a, b| a | b);
+        let names: Vec<String> = gs.iter().map(|g| g.name.clone()).collect();
+        let ghosts = find_ghosts(&p, l0, &group_of, &mirrors, &names, options.model)?;
+        let (ghosts, followers, walls) = clamp_followers(&p, l0, &group_of, &mirrors, ghosts);
+        for g in &ghosts {
+            // A ghost follows its master: it is moved by nothing else.
+            p.fix[g.ghost as usize] |= all_axes;
+        }
+        // Particles of clamped groups (all axes held) and ghosts: the second-order operator
+        // treats them as a rigid grip.
+        let rigid: Vec<bool> = p.fix.iter().map(|f| f & all_axes == all_axes).collect();
+        for fl in &followers {
+            // A follower is moved by its constraint only (it keeps its energy).
+            p.fix[fl.particle as usize] |= all_axes;
+        }
+        let op = ElasticOperator::new(
+            options.model,
+            l0,
+            options.re_factor,
+            n0,
+            options.stabilisation,
+            &materials,
+            &bonds,
+            n,
+            &rigid,
+            &ghosts,
+            &followers,
+            &walls,
+        );
+        let mut op = op;
+        // The second-order operator's summation-by-parts closure at free faces (module `sbp`):
+        // particle volumes (and masses) that integrate quadratics exactly and gradient weights
+        // whose transpose passes the integration constraint.
+        let mut closure = Vec::new();
+        if options.model == ElasticModel::SecondOrder {
+            let cl = sbp::close(
+                &p.x0,
+                &p.body,
+                &bonds,
+                &op.second,
+                l0,
+                options.re_factor,
+                bodies.len(),
+            );
+            let closable: Vec<bool> = cl.vol.iter().map(|v| v.is_some()).collect();
+            for (i, v) in cl.vol.iter().enumerate() {
+                if let Some(v) = v {
+                    op.vol[i] = *v;
+                    op.base_vol[i] = *v;
+                    p.mass[i] = bodies[p.body[i] as usize].material.density * v;
+                }
+            }
+            op.second.set_closure(&bonds, l0, cl.dg, closable);
+            // The followers' inertia, lumped on the layers they follow.
+            for fl in &op.second.followers {
+                let m = p.mass[fl.particle as usize];
+                for (j, share) in fl.inner.iter().zip(LUMP) {
+                    p.mass[*j as usize] += share * m;
+                }
+            }
+            closure = cl.report;
+        }
+        let mut load_of = vec![u32::MAX; n];
+        let mut ls = Vec::new();
+        for (li, (name, members)) in loads.into_iter().enumerate() {
+            for &i in &members {
+                load_of[i as usize] = li as u32;
+            }
+            ls.push(LoadRegion {
+                name,
+                members,
+                force: Vect::<D>::zeros(),
+                rate: Vect::<D>::zeros(),
+                t_ref: 0.0,
+            });
+        }
+        let contact = Contact::new(
+            options.contact.clone(),
+            l0,
+            n0,
+            &materials.iter().map(|m| m.mu()).collect::<Vec<_>>(),
+            &p.body,
+            &bonds,
+            options.fracture_strain.is_some(),
+        );
+        let mut world = World {
+            options,
+            l0,
+            re,
+            body_names: bodies.into_iter().map(|b| b.name).collect(),
+            p,
+            bonds,
+            op,
+            groups: gs,
+            loads: ls,
+            gravity,
+            time: 0.0,
+            steps: 0,
+            contact,
+            fracture_checks: 0,
+            broken_pairs: 0,
+            fracture_release: 0.0,
+            omega_max: 0.0,
+            omega_elastic: 0.0,
+            omega_reference: 0.0,
+            omega2_contact: 0.0,
+            stable: StableStepState {
+                omega_elastic: 0.0,
+                omega_measured: 0.0,
+                u_measured: Vec::new(),
+                step_measured: 0,
+                eig_t: Vec::new(),
+                eig_r: Vec::new(),
+            },
+            step_refreshes: 0,
+            step_refresh_seconds: 0.0,
+            frac_flag: Vec::new(),
+            scratch: ElasticScratch::default(),
+            force: vec![Vect::<D>::zeros(); n],
+            torque: vec![<Space as Dim<D>>::ang_zero(); n],
+            group_of,
+            load_of,
+            bad: vec![0; n],
+            closure,
+        };
+        // The Rayleigh quotient of the power iteration approaches omega_max^2 from below: in 3D
+        // 80 iterations leave it ~0.5 % short in omega, and the current configuration (large
+        // deflection) adds 1-2 %; the margin covers both so that safety = 1 is stable.
+        let (omega, eig_t, eig_r) = world.measure_omega_max(80, None);
+        world.omega_elastic = omega * (1.0 + OMEGA_MARGIN);
+        world.omega_reference = world.omega_elastic;
+        world.stable = StableStepState {
+            omega_elastic: world.omega_elastic,
+            omega_measured: world.omega_elastic,
+            u_measured: Vec::new(),
+            step_measured: 0,
+            eig_t,
+            eig_r,
+        };
+        // Contact adds stiffness that the reference state does not show: its bound is added to
+        // the measured omega^2 (Weyl: lambda_max(A + B) <= lambda_max(A) + lambda_max(B)).
+        let c2 = if world.contact.active
+            && (world.body_names.len() >= 2 || world.options.contact.fractured_surfaces)
+        {
+            world.contact.omega2_bound(&world.p.mass)
+        } else {
+            0.0
+        };
+        world.omega2_contact = c2;
+        world.omega_max = (world.omega_elastic.powi(2) + c2).sqrt();
+        match world.update_forces() {
+            Err(e @ SimError::Overlap { .. }) => {
+                return Err(SimError::Invalid(format!(
+                    "bodies overlap in the initial state: {e}"
+                )))
+            }
+            r => r?,
+        }
+        Ok(world)
+    }
+}

@@ -1,0 +1,202 @@
+//! The simulated world: bodies of particles, bonds, boundary groups, loads and gravity, and the
+//! order of a step (integrate with the forces of the current state, then evaluate the forces of
+//! the new state, so reactions and energies always describe the current time).
+//!
+//! By concern: `build` (World::new), `step` (the forces, the step and its inputs),
+//! `stable_step` (omega_max and its refresh), `mirror` (ghosts and followers of mirror faces),
+//! `state` (capture and restore), `queries` (energies, momenta, probes, fragments).
+mod build;
+mod mirror;
+mod queries;
+mod stable_step;
+mod state;
+mod step;
+
+pub use build::MIN_SPACING_BITS;
+pub use mirror::MirrorFace;
+pub use stable_step::{
+    StableStepState, OMEGA_MARGIN, REFRESH_CHECK_EVERY, REFRESH_DEFORMATION, REFRESH_ITERATIONS,
+    REFRESH_MIN_STEPS,
+};
+pub use state::WorldState;
+
+use super::bonds::Bonds;
+use super::boundary::{BoundaryGroup, GravityLaw, LoadRegion};
+use super::contact::Contact;
+use super::dim::{Dim, Space, Vect};
+use super::elastic::{ElasticOperator, ElasticScratch};
+pub use super::ghosts::Ghost;
+use super::params::{Material, SolverOptions};
+use super::particles::Particles;
+
+/// Errors of the solver; each says what happened, when and where.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    #[error("numerical blow-up at t = {time:.6e} s (step {step}): particle {particle} of body '{body}' was accelerated by more than half a particle spacing in one step (dt times its change of velocity) or became non-finite; reduce dt or check loads{note}")]
+    BlowUp {
+        time: f64,
+        step: u64,
+        particle: usize,
+        body: String,
+        /// What the material state says about the cause (empty when nothing is known): with
+        /// the Saint Venant-Kirchhoff law, the particles compressed beyond its stability limit.
+        note: String,
+    },
+    #[error("material collapse at t = {time:.6e} s (step {step}): particle {particle} of body '{body}' has det F = {det:.4e} <= 0 (compressed to nothing or turned inside out), where the neo-Hookean law has no energy; its energy grows without bound as det F -> 0, so only a step too long for the stiffening of the crushed particle or a load the discretisation cannot carry gets there (try a smaller solver.safety or particle spacing, or a smaller load)")]
+    Collapsed {
+        time: f64,
+        step: u64,
+        particle: usize,
+        body: String,
+        /// det F of the particle (its area or volume ratio; in the span of its bonds after
+        /// fracture) (-).
+        det: f64,
+    },
+    #[error("particles overlap at t = {time:.6e} s (step {step}): particle {} of body '{}' and particle {} of body '{}', not joined by an intact bond, are {distance:.4e} m apart, below the overlap limit {limit:.4e} m (contact.overlap_fraction x the pair's contact distance, l0 or the reference length of a broken bond){}", particles[0], bodies[0], particles[1], bodies[1], if bodies[0] == bodies[1] { "; they are parts of one body separated by fracture" } else { "" })]
+    Overlap {
+        time: f64,
+        step: u64,
+        /// Names of the bodies of the two particles.
+        bodies: [String; 2],
+        particles: [usize; 2],
+        /// Their distance (m).
+        distance: f64,
+        /// The overlap limit: overlap_fraction times the pair's contact distance (m).
+        limit: f64,
+    },
+    #[error("invalid input: {0}")]
+    Invalid(String),
+    #[error("advancing to t = {t_end:e} s would take {steps} solver steps of dt = {dt:.4e} s, more than solver.max_steps = {limit}; nothing was done (use a shorter advance, a larger particle spacing or a softer/denser material, or raise solver.max_steps)")]
+    TooMuchWork {
+        /// Time the advance was asked to reach (s).
+        t_end: f64,
+        /// Steps it would take.
+        steps: u64,
+        /// solver.max_steps.
+        limit: u64,
+        /// The solver step (s).
+        dt: f64,
+    },
+    #[error("out of memory: {0}")]
+    OutOfMemory(String),
+}
+
+/// A body to create: its material, particle positions and initial velocity.
+#[derive(Clone, Debug)]
+pub struct BodyInit<const D: usize>
+where
+    Space: Dim<D>,
+{
+    pub name: String,
+    pub material: Material,
+    pub points: Vec<Vect<D>>,
+    pub velocity: InitialVelocity<D>,
+}
+
+/// Initial velocity of the particles of a body. Particles of a boundary group start with zero
+/// velocity along the group's held axes, and with zero angular velocity when the group holds
+/// rotation, whatever is given here.
+#[derive(Clone, Debug)]
+pub enum InitialVelocity<const D: usize>
+where
+    Space: Dim<D>,
+{
+    /// Every particle moves with this velocity (m/s) and does not spin.
+    Uniform(Vect<D>),
+    /// One velocity (m/s) and one angular velocity (rad/s) per point, in the order of
+    /// `BodyInit::points`. The angular velocities are kept only by operators with particle
+    /// rotations (the paper's); the corrected operator has no rotational degree of freedom (no
+    /// moments, so a spin given to its particles would stay constant and only add a constant to
+    /// the kinetic energy), and its particles start with zero angular velocity.
+    PerParticle {
+        v: Vec<Vect<D>>,
+        w: Vec<<Space as Dim<D>>::Ang>,
+    },
+}
+
+impl<const D: usize> From<Vect<D>> for InitialVelocity<D>
+where
+    Space: Dim<D>,
+{
+    fn from(v: Vect<D>) -> Self {
+        InitialVelocity::Uniform(v)
+    }
+}
+
+/// A boundary group to create (member indices are global particle indices).
+#[derive(Clone, Debug)]
+pub struct GroupInit {
+    pub name: String,
+    pub members: Vec<u32>,
+    pub axes: [bool; 3],
+    pub fix_rotation: bool,
+    /// The group as a mirror of the body across this face (second-order operator only).
+    pub mirror: Option<MirrorFace>,
+}
+
+/// The simulated world.
+pub struct World<const D: usize>
+where
+    Space: Dim<D>,
+{
+    pub options: SolverOptions,
+    /// Initial particle spacing l0 (m).
+    pub l0: f64,
+    /// Effective radius re (m).
+    pub re: f64,
+    pub body_names: Vec<String>,
+    pub p: Particles<D>,
+    pub bonds: Bonds<D>,
+    pub op: ElasticOperator<D>,
+    pub groups: Vec<BoundaryGroup<D>>,
+    pub loads: Vec<LoadRegion<D>>,
+    pub gravity: GravityLaw<D>,
+    pub time: f64,
+    pub steps: u64,
+    /// Surface particles and contact (section 2.5).
+    pub contact: Contact<D>,
+    /// Fracture-check passes so far (0 when eps_max is infinite).
+    pub fracture_checks: u64,
+    /// Bond pairs broken so far, Eq. (42).
+    pub broken_pairs: u64,
+    /// Strain energy released by the breaks so far (J): at each break, what the particles
+    /// that lost bonds held just before less what they hold after their re-fit (never
+    /// negative, `ElasticOperator::limit_at_break`). 0 for the paper's operators.
+    pub fracture_release: f64,
+    omega_max: f64,
+    omega_elastic: f64,
+    /// omega_max of the elastic model in the reference configuration (with the margin).
+    omega_reference: f64,
+    /// Contact bound of omega^2 (rad^2/s^2).
+    omega2_contact: f64,
+    stable: StableStepState<D>,
+    /// Measurements of the stable step in the current configuration so far.
+    pub step_refreshes: u64,
+    /// Wall time spent checking and refreshing the stable step (s).
+    pub step_refresh_seconds: f64,
+    frac_flag: Vec<u8>,
+    scratch: ElasticScratch<D>,
+    force: Vec<Vect<D>>,
+    torque: Vec<<Space as Dim<D>>::Ang>,
+    group_of: Vec<u32>,
+    load_of: Vec<u32>,
+    bad: Vec<u8>,
+    /// Second-order operator: per body, its summation-by-parts closure at the free faces
+    /// (module `sbp`: the solve's figures) or why the body keeps the plain fits. Empty for
+    /// the other operators.
+    pub closure: Vec<Result<String, String>>,
+}
+
+impl<const D: usize> World<D>
+where
+    Space: Dim<D>,
+{
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.p.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.p.is_empty()
+    }
+}

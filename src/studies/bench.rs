@@ -83,9 +83,9 @@ pub fn single_thread_throughput(model: ElasticModel) -> Result<f64, String> {
         .build()
         .map_err(|e| e.to_string())?;
     #[cfg(feature = "parallel")]
-    let install = |f: &dyn Fn() -> Result<f64, String>| pool.install(f);
+    let install = |f: &(dyn Fn() -> Result<f64, String> + Sync)| pool.install(f);
     #[cfg(not(feature = "parallel"))]
-    let install = |f: &dyn Fn() -> Result<f64, String>| f();
+    let install = |f: &(dyn Fn() -> Result<f64, String> + Sync)| f();
     install(&|| {
         let mut sim = Simulation::new(&case2_scene(0.025, model, None, Support::Face))
             .map_err(|e| e.to_string())?;

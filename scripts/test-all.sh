@@ -13,7 +13,7 @@ if cargo fmt --version >/dev/null 2>&1; then cargo fmt --all -- --check; else ec
 echo "== cargo build --release"
 cargo build --release
 echo "== cargo test --release"
-cargo test --release -- --include-ignored 2>&1 | tee target/cargo-test.log
+cargo test --release --no-fail-fast -- --include-ignored 2>&1 | tee target/cargo-test.log
 echo "== FMU tests"
 scripts/fmu_tests.sh 2>&1 | tee target/fmu-test.log
 echo "== fuzz"

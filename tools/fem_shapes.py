@@ -723,7 +723,7 @@ def section_properties(m):
 def cylinder_level(m, check):
     R, L = CYL["R"], CYL["L"]
     s = CYL["s_over_R"] * R
-    nx = 8 * m
+    nx = 6 * m
 
     def F3(F2):
         def F(P):
@@ -826,7 +826,7 @@ def run_cylinder(levels, out_dir, check_theory=False):
             "curved blocks to the arc (2m, m, m along the arc, m radially, graded towards the "
             "surface by r = t/(t + (1-t)^1.5)); every node of the quadratic elements on the "
             "exact map (the arc through all boundary nodes); level m: 4m elements across the "
-            "diameter, 8m along x with x = L t^2/(t^2 + 1 - t) (graded towards the clamp)",
+            "diameter, 6m along x with x = L t^2/(t^2 + 1 - t) (graded towards the clamp)",
             levels, {"section_geometry": "per level in meshes[].section_geometry: area and I "
                                          "errors of the meshed section, largest radial error"}),
         "meshes": rows,

@@ -421,8 +421,9 @@ def run_stepped(dim, levels, out_dir):
               "fem_f1_over_euler_bernoulli": conv["f1_hz"]["value"] / f_eb,
               "fem_static_over_euler_bernoulli": conv[key_s]["value"] / w_eb,
               "note": "1D beam FE (200 cubic elements, consistent mass) of the two-step beam; "
-                      "the 3D/2D solid is softer at the step (the root box's ends are not "
-                      "fully engaged near the step) and at the clamp"}
+                      "the solid is softer: the tip box is built into the elastic end face of "
+                      "the root box, which adds a rotation at the step (as an elastic clamp "
+                      "would), and the clamp adds a little"}
     log(f"  beam theory: EB f1 {f_eb:.5f} Hz, tip {1e3 * w_eb:.5f} mm; Timoshenko f1 "
         f"{f_t:.5f} Hz, tip {1e3 * w_t:.5f} mm; FEM/EB f1 {theory['fem_f1_over_euler_bernoulli']:.5f}, "
         f"static {theory['fem_static_over_euler_bernoulli']:.5f}")

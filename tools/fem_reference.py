@@ -238,7 +238,8 @@ def assemble_boxes(mesh, lam, mu, rho, g, check=False, scaled=False, volumetric=
         ek = abs(K - K2).max() / abs(K2).max()
         em = abs(M - M2).max() / abs(M2).max()
         ef = np.abs(f - f2).max() / np.abs(f2).max()
-        if max(ek, em, ef) > 1e-12:
+        # round-off only; strongly graded meshes (tiny, stretched elements) reach ~1e-12
+        if max(ek, em, ef) > 1e-11:
             raise RuntimeError(f"fast assembly mismatch: K {ek:.1e} M {em:.1e} f {ef:.1e}")
         # total weight must be exact
         vol = np.prod(hs, axis=0).sum()

@@ -125,16 +125,20 @@ def solve(coords, E, nu, rho, g, nmodes, volumetric="full", check=False, label="
 
 
 def solve_system(mesh, basis, K, M, f, fixed, nmodes, label="", t_start=None, peak_modes=0,
-                 permc_spec="COLAMD"):
+                 permc_spec="COLAMD", perm=None):
     """Static solve K u = f and the lowest nmodes modes of K phi = omega^2 M phi with the
     DOFs `fixed` (bool mask) held at 0: one SuperLU factorisation of K (no pivoting, K is
     SPD), eigsh in shift-invert about 0 with a fixed start vector, modes tidied and
     classified by fr.tidy_modes.  peak_modes > 0: a second eigsh with that many modes
     (the first result is left as it is) for modal superposition (res["peak_basis"]).
-    res["lu"] and res["free"] allow further load cases."""
+    res["lu"] and res["free"] allow further load cases.  perm: a function that reorders
+    the free DOFs (e.g. a nested dissection); SuperLU then keeps that order."""
     t0 = time.time() if t_start is None else t_start
     comp = fr.dof_components(basis)
     free = np.flatnonzero(~fixed)
+    if perm is not None:
+        free = perm(free)
+        permc_spec = "NATURAL"
     Kc = K[free][:, free].tocsc()
     Mc = M[free][:, free].tocsr()
     fc = f[free]

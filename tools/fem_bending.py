@@ -7,6 +7,8 @@
      - the lowest 12 modes (z-bending f1, first 8 labelled, first torsion);
      - static deflection under self weight: u_z on the axis (tip and 201 samples)
        and averaged over the tip face;
+     - the first peak of the tip's u_z when gravity is applied suddenly (modal
+       superposition over 40 modes with the static remainder of the others);
      - f1 and torsion again for nu = 0.499, with the displacement Hex27 element
        (which locks in bending) and with the mixed Q2-P1disc element (pressure
        condensed per element; locking-free);
@@ -20,6 +22,7 @@
      - the lowest 6 modes (f1 and first 4 labelled), the first mode shape along
        the axis (201 samples, 1 at the tip);
      - static u_y under a body force -9.81 m/s^2 along y (tip and 201 samples);
+     - the first peak of the tip's u_y when that body force is applied suddenly (30 modes);
      - thin-plate theory f1 and the GMS initial velocity profile.
    Writes reference/plate2d_fem.json.
 

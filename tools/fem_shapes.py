@@ -52,7 +52,6 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import brentq
 
 from skfem import (Basis, CellBasis, ElementHex2, ElementQuad2, ElementVector, FacetBasis,
                    LinearForm, MeshHex, MeshHex2, MeshQuad, MeshQuad2, asm)

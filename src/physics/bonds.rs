@@ -134,6 +134,13 @@ pub fn lattice_neighbours<const D: usize>(l0: f64, re: f64) -> usize {
     lattice_distances(D, l0, re).len()
 }
 
+/// At most the bonds of a particle on the lattice of spacing l0 (for reservations and the memory
+/// estimate): [`lattice_neighbours`] plus the lattice points at exactly re, since such a pair's
+/// distance is re only to round-off and one a few ulps short of re is bonded.
+pub fn max_lattice_neighbours(dimension: usize, l0: f64, re: f64) -> usize {
+    lattice_distances(dimension, l0, re * (1.0 + 1e-9)).len()
+}
+
 /// The number density n0 of a particle with a full neighbourhood on the square/cubic lattice of
 /// spacing l0, Eq. (12).
 pub fn lattice_number_density<const D: usize>(l0: f64, re: f64) -> f64 {

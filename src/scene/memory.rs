@@ -50,12 +50,10 @@ pub struct Available {
     pub source: String,
 }
 
-/// At most the bonds of an interior particle (12 in 2D and 32 in 3D for re = 2.1 dp): the
-/// lattice points that `physics::bonds::is_bond` bonds, counting those at exactly re too (an upper
-/// bound: such a pair's distance is re only to round-off, and one a few ulps short is bonded).
+/// At most the bonds of an interior particle (12 in 2D and 32 in 3D for re = 2.1 dp; see
+/// `physics::bonds::max_lattice_neighbours`).
 pub fn lattice_neighbours(dimension: usize, re_factor: f64) -> u64 {
-    let re = re_factor.clamp(0.0, 16.0) * (1.0 + 1e-9);
-    crate::physics::bonds::lattice_distances(dimension, 1.0, re).len() as u64
+    crate::physics::bonds::max_lattice_neighbours(dimension, 1.0, re_factor.clamp(0.0, 16.0)) as u64
 }
 
 /// The memory a scene needs once built (an upper bound of the peak of the build).

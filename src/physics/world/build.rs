@@ -4,7 +4,7 @@
 use super::mirror::{clamp_followers, find_ghosts};
 use super::stable_step::{StableStepState, OMEGA_MARGIN};
 use super::{BodyInit, GroupInit, InitialVelocity, MirrorFace, SimError, World};
-use crate::physics::bonds::{lattice_neighbours, lattice_number_density, Bonds};
+use crate::physics::bonds::{lattice_number_density, max_lattice_neighbours, Bonds};
 use crate::physics::boundary::{BoundaryGroup, GravityLaw, GroupMotion, LoadRegion};
 use crate::physics::contact::Contact;
 use crate::physics::dim::{Dim, Space, Vect};
@@ -173,7 +173,7 @@ where
         if n == 0 {
             return Err(SimError::Invalid("the scene has no particles".into()));
         }
-        let bonds = Bonds::try_build(&p.x0, &p.body, re, lattice_neighbours::<D>(l0, re))
+        let bonds = Bonds::try_build(&p.x0, &p.body, re, max_lattice_neighbours(D, l0, re))
             .map_err(|e| SimError::OutOfMemory(format!("cannot allocate the bonds: {e}")))?;
         p.n_ref = (0..n)
             .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())

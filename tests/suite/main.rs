@@ -24,6 +24,7 @@ mod output_snapshots;
 mod pack_checks;
 mod paper_cases;
 mod physics_invariants;
+mod scene_schema;
 mod scene_validation;
 mod stability_step;
 mod torsion;

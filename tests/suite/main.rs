@@ -18,6 +18,7 @@ mod fracture_bar;
 mod header_fresh;
 mod initial_velocity;
 mod invariance;
+mod layout;
 mod limits_work;
 mod material_law;
 mod output_snapshots;

@@ -5,7 +5,7 @@
 //! solver, generic over the dimension; knows nothing of files or FMI), [`scene`] (serde scene
 //! files -> World), [`sim`] (either dimension behind one type), [`runner`] (a scene run to its
 //! end: probe series, energies, frequency), [`output`] (VTU/PVD and PNG snapshots), then the
-//! command line (`src/bin/mps.rs`) and [`fmi`] (the FMU's C ABI).
+//! command line (`src/bin/mps/`) and [`fmi`] (the FMU's C ABI).
 //!
 //! [`studies`] (cargo feature `studies`, on by default; the FMU's binary is built without it)
 //! holds the paper's cases with their references, the benchmark and the accuracy studies. The

@@ -12,7 +12,7 @@ clamped edges and corners of the face z = 0; away from the clamp the solution re
 Venant decay over about one width) to the closed form of a freely contracting bar,
   u_x = -nu rho g x (L - s) / E,  u_z = -[rho g (L s - s^2/2) - nu rho g (x^2 + y^2)/2] / E,
 s = -z, plus a rigid axial offset that the clamp's boundary layer carries down the column.
-The project's closed form (src/cases.rs `case1_closed_form`) is ported here as
+The project's closed form (src/studies/cases.rs `case1_closed_form`) is ported here as
 `closed_form` and compared with the FEM on the probe lines.
 
 Outputs: u_x and u_z on the line x = 0.1 (the side face), y = 0 at the stations
@@ -86,7 +86,7 @@ def log(*a):
 
 
 def closed_form(x, y, s):
-    """Port of src/cases.rs `case1_closed_form`: (u_x, u_z) at (x, y, z = -s) (m)."""
+    """Port of src/studies/cases.rs `case1_closed_form`: (u_x, u_z) at (x, y, z = -s) (m)."""
     rg = RHO * G_ACC
     ux = -NU * rg * x * (L - s) / E
     us = rg * (L * s - 0.5 * s * s) / E - NU * rg * (x * x + y * y) / (2.0 * E)

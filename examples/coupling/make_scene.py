@@ -9,6 +9,8 @@ thickness; the resolution study (resolution.py) writes the same scene at other n
 """
 import argparse
 import json
+import os
+from pathlib import Path
 
 LENGTH = 1.0  # m
 HEIGHT = 0.1  # m
@@ -69,8 +71,12 @@ def main() -> None:
     ap.add_argument("--name", default="cantilever_payload")
     ap.add_argument("--out", default="scenes/cantilever_payload.json")
     a = ap.parse_args()
+    # The scene names its JSON Schema (relative to the file) so that editors check it; mps
+    # ignores the key.
+    schema = Path(__file__).resolve().parents[2] / "schema" / "scene.schema.json"
+    named = {"$schema": os.path.relpath(schema, Path(a.out).resolve().parent), **scene(a.n, a.name)}
     with open(a.out, "w") as f:
-        json.dump(scene(a.n, a.name), f, indent=2)
+        json.dump(named, f, indent=2)
         f.write("\n")
 
 

@@ -1,4 +1,5 @@
 //! Plain parameter structs of the solver (serde, units in the doc comments).
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Default of `SolverOptions::max_particles`: about 4 GB in 3D and 1.6 GB in 2D at re = 2.1 dp
@@ -11,7 +12,7 @@ pub const DEFAULT_MAX_STEPS: u64 = 20_000_000;
 
 /// Isotropic elastic material: its small-strain constants and the large-strain law of the
 /// energy operators.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Material {
     /// Density rho (kg/m^3).
@@ -31,7 +32,7 @@ pub struct Material {
 /// Strain energy density W of the energy operators at large strain (src/physics/law.rs,
 /// docs/model.md "Material law"). The paper's spring operators have no strain energy density and
 /// take only the default.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MaterialLaw {
     /// Saint Venant-Kirchhoff, `W = mu E:E + lambda/2 tr(E)^2` in the Green strain E: linear
@@ -63,7 +64,7 @@ impl Material {
 }
 
 /// Which discrete elasticity operator computes the internal forces.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ElasticModel {
     /// Quadratic-consistent gradients and Hessians, the strain energy integrated over each
@@ -88,7 +89,7 @@ pub enum ElasticModel {
 }
 
 /// Solver options of a scene.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct SolverOptions {
     /// Elasticity operator (default: second_order).
@@ -122,7 +123,7 @@ pub struct SolverOptions {
 
 /// The bond strain of Eq. (42). The paper writes the strain of bond ij with the relative
 /// displacement u_ij, which allows more than one reading; see docs/case3-study.md.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum BondStrain {
     /// (|r_ij| - |r0_ij|) / |r0_ij|: the change of the bond's length (objective).
@@ -138,7 +139,7 @@ pub enum BondStrain {
 }
 
 /// Contact options (section 2.5). See docs/contact-fracture.md for the force law.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct ContactOptions {
     /// Contact between bodies at all. Off: bodies pass through each other (the overlap check

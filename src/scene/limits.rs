@@ -138,6 +138,163 @@ pub const OUTPUT_INTERVAL: Range = Range {
 /// memory and written as CSV (1e6 samples of 10 probes is about 240 MB).
 pub const MAX_OUTPUTS: f64 = 1e6;
 
+/// Every closed range above: the JSON Schema of the scene (src/scene/schema.rs) states each as the
+/// `minimum`/`maximum` of its field.
+pub const RANGES: &[Range] = &[
+    DENSITY,
+    YOUNG,
+    POISSON,
+    SOLVER_DT,
+    SAFETY,
+    DAMPING,
+    FRACTURE_STRAIN,
+    END_TIME,
+    OUTPUT_INTERVAL,
+];
+
+/// A bound of a scene number that is not an FMI parameter (so not a closed [`Range`]): one- or
+/// two-sided, each side inclusive or exclusive. The scene validation tests values with
+/// [`Bound::contains`]; the JSON Schema states it (`minimum`/`exclusiveMinimum`, ...).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bound {
+    /// Field path of the number below its owner, as in [`Range::field`].
+    pub field: &'static str,
+    /// Lower limit, if any.
+    pub min: Option<f64>,
+    /// Whether the lower limit itself is refused.
+    pub min_exclusive: bool,
+    /// Upper limit, if any.
+    pub max: Option<f64>,
+    /// Whether the upper limit itself is refused.
+    pub max_exclusive: bool,
+}
+
+impl Bound {
+    /// Greater than zero, finite.
+    const fn positive(field: &'static str) -> Bound {
+        Bound {
+            field,
+            min: Some(0.0),
+            min_exclusive: true,
+            max: None,
+            max_exclusive: false,
+        }
+    }
+
+    /// At least `min`, finite.
+    const fn at_least(field: &'static str, min: f64) -> Bound {
+        Bound {
+            field,
+            min: Some(min),
+            min_exclusive: false,
+            max: None,
+            max_exclusive: false,
+        }
+    }
+
+    /// Whether v is finite and within the bound (NaN and infinities never are).
+    pub fn contains(&self, v: f64) -> bool {
+        v.is_finite()
+            && self
+                .min
+                .is_none_or(|m| if self.min_exclusive { v > m } else { v >= m })
+            && self
+                .max
+                .is_none_or(|m| if self.max_exclusive { v < m } else { v <= m })
+    }
+
+    /// "(1, 4]", "[0, 1)", ">= 1", "> 0".
+    pub fn describe(&self) -> String {
+        match (self.min, self.max) {
+            (Some(a), Some(b)) => format!(
+                "{}{}, {}{}",
+                if self.min_exclusive { "(" } else { "[" },
+                num(a),
+                num(b),
+                if self.max_exclusive { ")" } else { "]" }
+            ),
+            (Some(a), None) => {
+                format!("{} {}", if self.min_exclusive { ">" } else { ">=" }, num(a))
+            }
+            (None, Some(b)) => {
+                format!("{} {}", if self.max_exclusive { "<" } else { "<=" }, num(b))
+            }
+            (None, None) => "any finite number".to_string(),
+        }
+    }
+}
+
+/// The scene's dimension: 2 or 3.
+pub const DIMENSION: Bound = Bound {
+    field: "dimension",
+    min: Some(2.0),
+    min_exclusive: false,
+    max: Some(3.0),
+    max_exclusive: false,
+};
+
+/// Initial particle spacing l0 (m).
+pub const PARTICLE_SPACING: Bound = Bound::positive("particle_spacing");
+
+/// Period T of the paper's gravity ramp, Eq. (46) (s).
+pub const RAMP_PERIOD: Bound = Bound::positive("gravity.paper_ramp_period");
+
+/// re / l0 (-): above 1, or a particle has no neighbour on the lattice; 4 already bonds about
+/// 200 neighbours in 3D (the paper uses 2.1).
+pub const RE_FACTOR: Bound = Bound {
+    field: "solver.re_factor",
+    min: Some(1.0),
+    min_exclusive: true,
+    max: Some(4.0),
+    max_exclusive: false,
+};
+
+/// Stiffness factor of the corrected operator's stabilisation (-): a stiffness, not negative.
+pub const STABILISATION: Bound = Bound::at_least("solver.stabilisation", 0.0);
+
+/// Steps of one advance (work guard): at least one.
+pub const MAX_STEPS: Bound = Bound::at_least("solver.max_steps", 1.0);
+
+/// n_c of Eq. (41) (-): a positive number-density margin.
+pub const SURFACE_THRESHOLD: Bound = Bound::positive("solver.contact.surface_threshold");
+
+/// Overlap distance as a fraction of l0 (-): strictly between touching and a full spacing.
+pub const OVERLAP_FRACTION: Bound = Bound {
+    field: "solver.contact.overlap_fraction",
+    min: Some(0.0),
+    min_exclusive: true,
+    max: Some(1.0),
+    max_exclusive: true,
+};
+
+/// Contact stiffness multiplier (-).
+pub const CONTACT_STIFFNESS: Bound = Bound::positive("solver.contact.stiffness");
+
+/// Verlet skin of the contact pair list, a fraction of l0 (-).
+pub const CONTACT_SKIN: Bound = Bound::positive("solver.contact.skin");
+
+/// Contact partners per particle assumed by the stable step (-): at least one.
+pub const MAX_PARTNERS: Bound = Bound::at_least("solver.contact.max_partners", 1.0);
+
+/// Length of a mode-shape velocity profile's beam (m).
+pub const MODE_SHAPE_LENGTH: Bound = Bound::positive("mode_shape.length");
+
+/// Every bound above: the scene validation checks each, the JSON Schema states each.
+pub const BOUNDS: &[Bound] = &[
+    DIMENSION,
+    PARTICLE_SPACING,
+    RAMP_PERIOD,
+    RE_FACTOR,
+    STABILISATION,
+    MAX_STEPS,
+    SURFACE_THRESHOLD,
+    OVERLAP_FRACTION,
+    CONTACT_STIFFNESS,
+    CONTACT_SKIN,
+    MAX_PARTNERS,
+    MODE_SHAPE_LENGTH,
+];
+
 /// Defaults of `solver.max_steps` and `solver.max_particles` (kept with the solver options).
 pub use crate::physics::params::{DEFAULT_MAX_PARTICLES, DEFAULT_MAX_STEPS};
 

@@ -6,6 +6,7 @@ mod fill;
 pub mod limits;
 pub mod memory;
 pub mod resolution;
+pub mod schema;
 pub mod velocity;
 
 pub use build::{Model, ProbeAt};
@@ -17,11 +18,13 @@ pub use velocity::{
 };
 
 use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// A scene file.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// A scene file: the bodies as boxes of particles, their materials, boundary groups, load
+/// regions, probes and the run's settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
     /// Short identifier (also the FMU model identifier); letters, digits and '_'.
@@ -33,15 +36,21 @@ pub struct Scene {
     pub dimension: usize,
     /// Initial particle spacing l0 = dp (m).
     pub particle_spacing: f64,
+    /// The elasticity operator, time step, fracture and contact settings.
     #[serde(default)]
     pub solver: SolverOptions,
+    /// Gravity acting on every particle (default: none).
     #[serde(default)]
     pub gravity: Gravity,
+    /// The solids, at least one.
     pub bodies: Vec<Body>,
+    /// Boundary groups: clamped, pinned or prescribed particles of a body.
     #[serde(default)]
     pub boundaries: Vec<Boundary>,
+    /// Load regions: particles sharing an external force set from outside (FMU inputs).
     #[serde(default)]
     pub loads: Vec<LoadSpec>,
+    /// Points whose displacement is reported (time series, FMU outputs).
     #[serde(default)]
     pub probes: Vec<Probe>,
     /// Simulated time (s).
@@ -54,7 +63,7 @@ pub struct Scene {
 }
 
 /// Gravity: a vector (m/s^2) and an optional ramp.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Gravity {
     /// Full gravity vector (m/s^2), `dimension` components.
@@ -65,10 +74,12 @@ pub struct Gravity {
 }
 
 /// An axis-aligned box (m), `dimension` components each.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Region {
+    /// The lower corner (m), `dimension` components.
     pub min: Vec<f64>,
+    /// The upper corner (m), `dimension` components, not below `min`.
     pub max: Vec<f64>,
 }
 
@@ -76,10 +87,12 @@ pub struct Region {
 /// Particles of all boxes of a body are bonded together; a particle closer than l0 / 4 to one of
 /// an earlier box is dropped. A later box with another lattice offset puts a layer of particles
 /// exactly on a face (used for supports: see docs/model.md).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Body {
+    /// Unique name of the body (boundaries, loads and probes refer to it).
     pub name: String,
+    /// The body's elastic material.
     pub material: Material,
     /// Extents (m); each side must be a whole number of particle spacings.
     pub boxes: Vec<Region>,
@@ -92,7 +105,7 @@ pub struct Body {
 }
 
 /// Kind of boundary group.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum BoundaryKind {
     /// Translation along all axes and rotation held (displacement settable from outside).
@@ -104,12 +117,16 @@ pub enum BoundaryKind {
 }
 
 /// A boundary group: the particles of `body` inside `region`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Boundary {
+    /// Unique name of the group (the FMU's `<name>.u*` displacement inputs).
     pub name: String,
+    /// What the group holds.
     pub kind: BoundaryKind,
+    /// Name of the body whose particles the group takes.
     pub body: String,
+    /// The box (m) whose particles of `body` belong to the group.
     pub region: Region,
     /// Axes ("x", "y", "z") for pinned and prescribed groups; default all.
     #[serde(default)]
@@ -128,29 +145,35 @@ pub struct Boundary {
 }
 
 /// A plane: the boundary face of a mirror group.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MirrorSpec {
     /// A point of the face (m), `dimension` components.
     pub point: Vec<f64>,
-    /// The face's normal (any length, not zero), `dimension` components.
+    /// The face's normal (-): any length but not zero, `dimension` components.
     pub normal: Vec<f64>,
 }
 
 /// A load region: the particles of `body` inside `region` share an external force.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LoadSpec {
+    /// Unique name of the load region (the FMU's `<name>.F*` force inputs).
     pub name: String,
+    /// Name of the body whose particles share the force.
     pub body: String,
+    /// The box (m) whose particles of `body` share the force.
     pub region: Region,
 }
 
 /// A named point of a body whose displacement is reported (reference coordinates, m).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Probe {
+    /// Unique name of the probe (the FMU's `<name>.u*` outputs, the series' columns).
     pub name: String,
+    /// The point (m), reference coordinates, `dimension` components; the nearest particle is
+    /// reported.
     pub point: Vec<f64>,
     /// The body the point belongs to; default: the body whose box contains it.
     #[serde(default)]
@@ -158,7 +181,7 @@ pub struct Probe {
 }
 
 /// Measurements a scene asks for.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Analysis {
     /// Probe whose displacement component gives the vibration frequency and peak deflection.
@@ -193,10 +216,11 @@ pub fn axis_index(name: &str) -> Option<usize> {
 }
 
 impl Scene {
-    /// Parses JSON: exactly one scene object, nothing but whitespace after it.
+    /// Parses JSON: exactly one scene object, nothing but whitespace after it. A top-level
+    /// `"$schema"` (the schema's address, for editors) is passed over.
     pub fn from_json(text: &str) -> Result<Scene, SceneError> {
         let mut de = serde_json::Deserializer::from_str(text);
-        let s: Scene = serde_path_to_error::deserialize(&mut de)
+        let s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(&mut de))
             .map_err(|e| err(e.path().to_string(), e.inner().to_string()))?;
         de.end().map_err(|e| {
             err(
@@ -212,7 +236,7 @@ impl Scene {
     /// Parses TOML.
     pub fn from_toml(text: &str) -> Result<Scene, SceneError> {
         let de = toml::Deserializer::new(text);
-        let s: Scene = serde_path_to_error::deserialize(de)
+        let s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(de))
             .map_err(|e| err(e.path().to_string(), e.inner().to_string()))?;
         s.validate()?;
         Ok(s)
@@ -238,15 +262,29 @@ impl Scene {
             _ => Scene::from_json(&text),
         }
     }
-    /// Serialises to pretty JSON.
+    /// Serialises to pretty JSON (the canonical form the FMU's GUID hashes: no `$schema`).
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).expect("scene serialises")
+    }
+
+    /// Pretty JSON that names its schema first (`"$schema": schema`, the address relative to
+    /// the file or a URL), for scene files that editors check; reads back as the same scene.
+    pub fn to_json_with_schema(&self, schema: &str) -> String {
+        let json = self.to_json();
+        let body = json
+            .strip_prefix('{')
+            .expect("a scene serialises to an object");
+        format!(
+            "{{\n  {}: {},{body}",
+            serde_json::to_string(schema::SCHEMA_KEY).expect("a string serialises"),
+            serde_json::to_string(schema).expect("a string serialises")
+        )
     }
 
     /// Checks every field; the first problem found is returned with its field path.
     pub fn validate(&self) -> Result<(), SceneError> {
         let d = self.dimension;
-        if d != 2 && d != 3 {
+        if !limits::DIMENSION.contains(d as f64) {
             return Err(err("dimension", format!("must be 2 or 3, got {d}")));
         }
         if self.name.is_empty()
@@ -259,20 +297,10 @@ impl Scene {
             return Err(err("name", format!("{:?} must be a non-empty identifier of letters, digits and '_' not starting with a digit", self.name)));
         }
         xml_text("description", &self.description, true)?;
-        positive("particle_spacing", self.particle_spacing)?;
+        positive(&limits::PARTICLE_SPACING, self.particle_spacing)?;
         let o = &self.solver;
-        if !(o.re_factor.is_finite() && o.re_factor > 1.0 && o.re_factor <= 4.0) {
-            return Err(err(
-                "solver.re_factor",
-                format!("must be in (1, 4], got {}", num(o.re_factor)),
-            ));
-        }
-        if !(o.stabilisation.is_finite() && o.stabilisation >= 0.0) {
-            return Err(err(
-                "solver.stabilisation",
-                format!("must be >= 0, got {}", num(o.stabilisation)),
-            ));
-        }
+        bounded(&limits::RE_FACTOR, o.re_factor)?;
+        bounded(&limits::STABILISATION, o.stabilisation)?;
         if let Some(dt) = o.dt {
             ranged("", &limits::SOLVER_DT, dt)?;
         }
@@ -281,31 +309,13 @@ impl Scene {
         if let Some(e) = o.fracture_strain {
             ranged("", &limits::FRACTURE_STRAIN, e)?;
         }
-        if o.max_steps == 0 {
-            return Err(err("solver.max_steps", "must be >= 1, got 0"));
-        }
+        bounded(&limits::MAX_STEPS, o.max_steps as f64)?;
         let c = &o.contact;
-        if !(c.surface_threshold.is_finite() && c.surface_threshold > 0.0) {
-            return Err(err(
-                "solver.contact.surface_threshold",
-                format!("must be > 0, got {}", num(c.surface_threshold)),
-            ));
-        }
-        if !(c.overlap_fraction.is_finite() && c.overlap_fraction > 0.0 && c.overlap_fraction < 1.0)
-        {
-            return Err(err(
-                "solver.contact.overlap_fraction",
-                format!("must be in (0, 1), got {}", num(c.overlap_fraction)),
-            ));
-        }
-        positive("solver.contact.stiffness", c.stiffness)?;
-        positive("solver.contact.skin", c.skin)?;
-        if !(c.max_partners.is_finite() && c.max_partners >= 1.0) {
-            return Err(err(
-                "solver.contact.max_partners",
-                format!("must be >= 1, got {}", num(c.max_partners)),
-            ));
-        }
+        bounded(&limits::SURFACE_THRESHOLD, c.surface_threshold)?;
+        bounded(&limits::OVERLAP_FRACTION, c.overlap_fraction)?;
+        positive(&limits::CONTACT_STIFFNESS, c.stiffness)?;
+        positive(&limits::CONTACT_SKIN, c.skin)?;
+        bounded(&limits::MAX_PARTNERS, c.max_partners)?;
         ranged("", &limits::END_TIME, self.end_time)?;
         ranged("", &limits::OUTPUT_INTERVAL, self.output_interval)?;
         let outputs = self.end_time / self.output_interval;
@@ -325,7 +335,7 @@ impl Scene {
             vector("gravity.vector", &self.gravity.vector, d)?;
         }
         if let Some(t) = self.gravity.paper_ramp_period {
-            positive("gravity.paper_ramp_period", t)?;
+            positive(&limits::RAMP_PERIOD, t)?;
         }
         if self.bodies.is_empty() {
             return Err(err("bodies", "a scene needs at least one body"));
@@ -530,15 +540,29 @@ pub(crate) fn body_field(k: usize, b: &Body) -> String {
     format!("bodies[{k}] ('{}')", b.name.escape_debug())
 }
 
-fn positive(field: &str, v: f64) -> Result<(), SceneError> {
-    if v.is_finite() && v > 0.0 {
+/// Checks v against a `limits::Bound` that is "> 0" (the message says "positive finite").
+fn positive(b: &limits::Bound, v: f64) -> Result<(), SceneError> {
+    if b.contains(v) {
         Ok(())
     } else {
         Err(err(
-            field,
+            b.field,
             format!("must be a positive finite number, got {}", num(v)),
         ))
     }
+}
+
+/// Checks v against a `limits::Bound`: "must be in (1, 4], got 5", "must be >= 1, got 0".
+fn bounded(b: &limits::Bound, v: f64) -> Result<(), SceneError> {
+    if b.contains(v) {
+        return Ok(());
+    }
+    let what = if b.min.is_some() && b.max.is_some() {
+        format!("in {}", b.describe())
+    } else {
+        b.describe()
+    };
+    Err(err(b.field, format!("must be {what}, got {}", num(v))))
 }
 
 /// Checks v against a range of `limits`; the field is `prefix.range.field` (or the range's own

@@ -21,6 +21,7 @@
 //! The array is the original form (a uniform velocity); null or no field is rest.
 use super::limits::num;
 use super::{axis_index, err, SceneError};
+use schemars::JsonSchema;
 use serde::{de, Deserialize, Deserializer, Serialize, Serializer};
 
 /// Initial velocity of a body.
@@ -28,7 +29,8 @@ use serde::{de, Deserialize, Deserializer, Serialize, Serializer};
 /// In JSON and TOML either an array `[vx, vy(, vz)]` (m/s, every particle moves with it) or an
 /// object, a [`VelocityField`]. Binary formats (the bincode of FMU states) write the variant
 /// explicitly, since they cannot tell an array from an object.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, JsonSchema)]
+#[schemars(untagged)]
 pub enum BodyVelocity {
     /// Every particle moves with this velocity (m/s), `dimension` components.
     Uniform(Vec<f64>),
@@ -38,7 +40,7 @@ pub enum BodyVelocity {
 
 /// A velocity field: the sum of its parts, each evaluated at the reference position X (m).
 /// Every part is optional; an empty object is rest.
-#[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct VelocityField {
     /// Translation (m/s), `dimension` components.
@@ -55,7 +57,7 @@ pub struct VelocityField {
 /// A rigid rotation: v(X) = omega x (X - center). Operators with particle rotations (the
 /// paper's) also give each particle the angular velocity omega, so that a rigid spin carries
 /// no shear; the corrected operator has no particle rotations.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AngularVelocity {
     /// Angular velocity (rad/s): in 2D a number (about z, counter-clockwise positive), in 3D a
@@ -66,7 +68,8 @@ pub struct AngularVelocity {
 }
 
 /// An angular velocity (rad/s): a number in 2D, a vector of three in 3D.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, JsonSchema)]
+#[schemars(untagged)]
 pub enum Omega {
     /// About z (2D).
     Scalar(f64),
@@ -76,17 +79,19 @@ pub enum Omega {
 
 /// A velocity profile: one velocity component (m/s) as a function of one reference coordinate
 /// (m). Externally tagged: `{"table": {...}}`, `{"mode_shape": {...}}`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum VelocityProfile {
+    /// A table of the velocity component over one coordinate.
     Table(TableProfile),
+    /// A beam's vibration mode.
     ModeShape(ModeShapeProfile),
 }
 
 /// A table v(s) of velocity component `component` (m/s) over the reference coordinate s along
 /// `axis` (m), interpolated linearly between its points and constant beyond the first and the
 /// last point.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TableProfile {
     /// The axis s runs along: "x", "y" or "z".
@@ -100,7 +105,7 @@ pub struct TableProfile {
 /// A beam's vibration mode as a velocity profile: v(X) = amplitude f(s) / f(length) along
 /// `component`, with s = X[axis] - x0 taken in [0, length] (the value at the clamp behind it,
 /// the tip value beyond the tip).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ModeShapeProfile {
     /// Which mode.
@@ -118,7 +123,7 @@ pub struct ModeShapeProfile {
 }
 
 /// Named mode shapes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 pub enum ModeShape {
     /// First bending mode of a clamped-free (cantilever) Euler-Bernoulli beam, the initial
     /// velocity of the oscillating plate of Gray, Monaghan & Swift (2001):
@@ -347,7 +352,7 @@ pub(crate) fn validate(field: &str, v: &BodyVelocity, d: usize) -> Result<(), Sc
                     ));
                 }
                 finite(&format!("{pf}.x0"), m.x0)?;
-                if !(m.length.is_finite() && m.length > 0.0) {
+                if !super::limits::MODE_SHAPE_LENGTH.contains(m.length) {
                     return Err(err(
                         format!("{pf}.length"),
                         format!(

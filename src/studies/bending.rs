@@ -2,7 +2,7 @@
 //! cantilever (L/h = 10) and the 2D oscillating plate of Gray, Monaghan & Swift (2001) in plane
 //! strain, each with n particles through the thickness on one uniform lattice (the clamp is
 //! `ceil(re/l0)` wall layers behind the clamped face x = 0), and their linearised first
-//! frequency and static tip deflection (src/linear.rs) for the accuracy study.
+//! frequency and static tip deflection (src/studies/linear.rs) for the accuracy study.
 use super::linear::{field_at, Linearised};
 use crate::physics::particles::FIX_AXIS;
 use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions, Vect};
@@ -731,7 +731,7 @@ const CG_TOL: f64 = 1e-6;
 
 /// The first torsion frequency (Hz) of a 3D beam scene along x whose lattice and clamp are
 /// symmetric under the mirrors y -> -y and z -> -z (`cantilever3d_scene`), from its
-/// linearisation (src/linear.rs): inverse iteration x <- K^-1 M x (K by conjugate gradients,
+/// linearisation (src/studies/linear.rs): inverse iteration x <- K^-1 M x (K by conjugate gradients,
 /// SPD with the clamp) with the iterate projected every iteration onto the fields
 /// antisymmetric under both mirrors. The lowest mode of that class is the first torsion mode
 /// (the bending pairs and the axial mode are symmetric under at least one mirror); the start is

@@ -178,7 +178,7 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
     let h = CASE2_HALF;
     // The clamp layers on the cell vertices across the section (10 x 10 rows at dp = 0.025, from
     // -h to h): the face layer samples the whole clamped face, its edges included, where the FEM
-    // holds u = 0 (src/bending.rs, docs/model.md).
+    // holds u = 0 (src/studies/bending.rs, docs/model.md).
     let hv = h + 0.5 * dp;
     let l = CASE2_LENGTH;
     let tol = 0.25 * dp;

@@ -308,7 +308,7 @@ pub fn case2_text(r: &Case2Report) -> String {
         out.push_str(&row(name, f, Some(d)));
     }
     out.push_str(&format!(
-        "  frequency vs 3D FEM {:+.2}% (tolerance 3%), peak deflection vs 3D FEM {:+.2}%\n  (EB peak = 2 x static {:.3e} m; FEM static max {:.3e} m at x = {:.3} m; the paper's deflections are ~10x too large, see README)\n  {}\n",
+        "  frequency vs 3D FEM {:+.2}% (tolerance 3%), peak deflection vs 3D FEM {:+.2}%\n  (EB peak = 2 x static {:.3e} m; FEM static max {:.3e} m at x = {:.3} m; the paper's deflections are ~10x too large, see docs/paper-cases.md)\n  {}\n",
         100.0 * r.frequency_error,
         100.0 * r.peak_error,
         r.euler_bernoulli_static_m,

@@ -242,7 +242,7 @@ def test_case3_without_fractured_surface_contact_breaks_and_never_returns_nan(ca
     # Without contact detection between fractured surfaces the broken parts of the block move
     # through each other with no force. Whether two of their particles come closer than the
     # overlap limit (0.5 l0) before 1.7 s is marginal in our set-up (closest approach ~0.4996
-    # l0 at 1.616 s with one sub-step split, just above it with another; see README), so the test
+    # l0 at 1.616 s with one sub-step split, just above it with another; see docs/paper-cases.md), so the test
     # asserts what must hold either way: bonds break after contact, every output stays finite,
     # and if a step fails it fails with fmi2Error and a logged message naming the overlap
     # (the paper's run "stopped owing to the overlap of the particles").

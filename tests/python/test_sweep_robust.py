@@ -155,8 +155,8 @@ def test_default_timeout():
     assert a.timeout == sweep.DEFAULT_TIMEOUT_S
     assert inspect.signature(sweep.sweep).parameters["timeout"].default == sweep.DEFAULT_TIMEOUT_S
     assert "3600" in sweep.make_parser().format_help()
-    readme = (ROOT / "README.md").read_text()
-    assert "3600" in readme.split("## Parameter studies (Dask)")[1].split("\n## ")[0]
+    docs = (ROOT / "docs" / "sweeps.md").read_text()
+    assert "3600" in docs
 
 
 # ---------------------------------------------------------------------------------------------

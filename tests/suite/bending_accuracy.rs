@@ -1,5 +1,5 @@
 //! Accuracy of the elastic operators in bending (issue 7), from the linearised model
-//! (src/linear.rs: static deflection by conjugate gradients, first mode by inverse iteration),
+//! (src/studies/linear.rs: static deflection by conjugate gradients, first mode by inverse iteration),
 //! against the converged FEM references of tools/fem_bending.py.
 use crate::common;
 use mps_solid::physics::{ElasticModel, Vect};
@@ -85,7 +85,7 @@ fn second_order_converges_at_second_order_on_the_free_free_plate() {
 /// The clamped GMS plate against the converged FEM (targets of issue 7: within 2 % at 4 and
 /// 1 % at 8 particles through the thickness). The second-order operator closes the plate's free
 /// faces and its clamped face (module `physics::sbp`); the first layer at the clamp follows the
-/// quadratic extrapolation to the face (src/bending.rs, docs/model.md "Clamped faces").
+/// quadratic extrapolation to the face (src/studies/bending.rs, docs/model.md "Clamped faces").
 /// Measured: f1 -0.009 % / -0.009 % and static tip deflection +0.003 % / +0.016 % at 4 / 8
 /// (and within 0.002 % at 16 and 32 across). Required within 0.03 %, about twice the largest: the odd
 /// mirror of the clamp (the previous treatment, whose odd extension has a kink in the curvature

@@ -309,7 +309,7 @@ fn contact_impact_keeps_the_shadow_energy_of_symplectic_euler() {
 /// 5e-5). Beyond this, at bond strains of 0.45 (8 m/s, 77 % of L), the default step lets the
 /// energy grow by 3.6 % in 8 periods (nonlinear resonance of the fastest modes, whose omega dt
 /// is up to 1.6 at safety 0.8, past the 4:1 resonance of symplectic Euler at sqrt(2)); safety 0.6
-/// or 0.4 keeps it within 0.1 % (7e-4); docs/model.md, "Stable step". That case is not held
+/// or 0.4 keeps it within 0.1 % (7e-4); docs/model.md, "Time step". That case is not held
 /// here.
 #[test]
 #[ignore = "slow (27 s on a loaded 2-core machine): the full test command runs it"]

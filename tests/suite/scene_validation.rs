@@ -797,7 +797,7 @@ fn material_law_is_optional_and_selectable() {
 
 #[test]
 fn a_scene_that_names_no_operator_gets_second_order_with_its_closure() {
-    // The scene format's contract (README, "Bending at coarse resolution"): no solver.model ->
+    // The scene format's contract (docs/paper-cases.md, "Bending at coarse resolution"): no solver.model ->
     // the second-order operator, and a free lattice box gets the summation-by-parts closure
     // (no warning); naming "corrected" still selects that operator.
     let s = one_body(

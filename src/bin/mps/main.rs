@@ -1,4 +1,4 @@
-//! Command line: run a scene, pack an FMU; with the `studies` feature also the paper's cases,
+//! Command line: run a scene, pack an FMU, print the scene schema; with the `studies` feature also the paper's cases,
 //! the benchmark and case 3 (src/bin/mps/studies.rs).
 use clap::{Parser, Subcommand, ValueEnum};
 #[cfg(feature = "studies")]
@@ -79,6 +79,13 @@ enum Cmd {
         /// Only write or check the XML (--write-xml / --check-xml); pack nothing.
         #[arg(long)]
         xml_only: bool,
+    },
+    /// Print the JSON Schema of scene files (as committed in schema/scene.schema.json), or the
+    /// scene reference page (docs/scene-reference.md) with --markdown.
+    Schema {
+        /// Print the reference page (Markdown: every field's type, unit, range, default).
+        #[arg(long)]
+        markdown: bool,
     },
     #[cfg(feature = "studies")]
     #[command(flatten)]
@@ -228,6 +235,20 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             } else {
                 ExitCode::SUCCESS
             })
+        }
+        Cmd::Schema { markdown } => {
+            use mps_solid::scene::schema;
+            use std::io::Write;
+            let text = if markdown {
+                schema::reference_markdown()
+            } else {
+                schema::scene_schema_text()
+            };
+            std::io::stdout()
+                .write_all(text.as_bytes())
+                .and_then(|()| std::io::stdout().flush())
+                .map_err(|e| format!("cannot write to stdout: {e}"))?;
+            Ok(ExitCode::SUCCESS)
         }
         #[cfg(feature = "studies")]
         Cmd::Study(cmd) => studies::run(cmd),

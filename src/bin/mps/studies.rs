@@ -95,6 +95,10 @@ pub enum StudyCmd {
     Scenes {
         #[arg(default_value = "scenes")]
         dir: PathBuf,
+        /// The `$schema` each file names (editors check the scene against it): the schema's
+        /// address relative to DIR, or a URL.
+        #[arg(long, default_value = "../schema/scene.schema.json")]
+        schema_ref: String,
     },
     /// Run one of the accuracy studies and diagnostics kept for their figures (docs/studies.md);
     /// `--list` names them.
@@ -495,12 +499,12 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
             programs::run(&name, argv)?;
             Ok(ExitCode::SUCCESS)
         }
-        StudyCmd::Scenes { dir } => {
+        StudyCmd::Scenes { dir, schema_ref } => {
             std::fs::create_dir_all(&dir)
                 .map_err(|e| format!("cannot create the directory {}: {e}", dir.display()))?;
             for sc in paper_scenes() {
                 let path = dir.join(format!("{}.json", sc.name));
-                std::fs::write(&path, sc.to_json() + "\n")
+                std::fs::write(&path, sc.to_json_with_schema(&schema_ref) + "\n")
                     .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
                 println!("wrote {}", path.display());
             }

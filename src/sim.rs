@@ -3,10 +3,37 @@
 use crate::physics::boundary::{GravityLaw, GroupMotion};
 use crate::physics::dim::{from3, to3};
 use crate::physics::world::WorldState;
-use crate::physics::SimError;
+use crate::physics::{ElasticModel, SimError};
 use crate::scene::limits::num;
 use crate::scene::{Model, Scene, SceneError, SceneWarning};
 use serde::{Deserialize, Serialize};
+
+/// Operator families of the cost model: the second-order operator, and the bond operators
+/// (corrected and the paper's, whose costs per bond are alike).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CostFamily {
+    SecondOrder,
+    Bond,
+}
+
+fn model_family(m: ElasticModel) -> CostFamily {
+    match m {
+        ElasticModel::SecondOrder => CostFamily::SecondOrder,
+        _ => CostFamily::Bond,
+    }
+}
+
+/// Wall time of one solver step on two cores at re = 2.1 dp: (family, dimension, fixed cost
+/// per step (s), cost per particle (s)). Fitted to the step times of BENCHMARKS.md ("Bending:
+/// run time against error": the plate in 2D at 4 and 16 across, the cantilever in 3D at 4 and 8
+/// across, two rayon threads on an idle machine); the fixed part is thread synchronisation and
+/// the per-step passes over the groups, which dominate scenes of a few hundred particles.
+pub const STEP_COST: [(CostFamily, usize, f64, f64); 4] = [
+    (CostFamily::SecondOrder, 2, 22e-6, 0.20e-6),
+    (CostFamily::SecondOrder, 3, 20e-6, 1.08e-6),
+    (CostFamily::Bond, 2, 30e-6, 0.075e-6),
+    (CostFamily::Bond, 3, 20e-6, 0.22e-6),
+];
 
 /// A built scene of dimension 2 or 3.
 pub enum Simulation {
@@ -123,26 +150,61 @@ impl Simulation {
             n as u64
         }
     }
-    /// Ok when advancing to t_end takes at most solver.max_steps steps, else
-    /// `SimError::TooMuchWork` (nothing is changed).
+    /// The work guard of the scene in particle-steps (particles x solver steps per advance).
+    pub fn max_particle_steps(&self) -> u64 {
+        with!(self, m => m.world.options.max_particle_steps)
+    }
+    /// Estimated wall time (s) of `steps` solver steps of this scene on two cores: a fixed cost
+    /// per step plus a cost per particle-step of the operator and dimension
+    /// ([`STEP_COST`]), scaled by the neighbours per particle, (re_factor / 2.1)^D. An estimate
+    /// to a factor of about two (contact, fracture and the machine's load add to it).
+    pub fn estimate_wall_time(&self, steps: u64) -> f64 {
+        let d = self.dimension();
+        let (model, re) = with!(self, m => (m.world.options.model, m.world.options.re_factor));
+        let cost = STEP_COST
+            .iter()
+            .find(|c| c.0 == model_family(model) && c.1 == d)
+            .expect("every family and dimension is listed");
+        let neighbours = (re / 2.1).powi(d as i32);
+        steps as f64 * (cost.2 + cost.3 * neighbours * self.particles() as f64)
+    }
+    /// Ok when advancing to t_end takes at most solver.max_steps steps and at most
+    /// solver.max_particle_steps particle-steps, else `SimError::TooMuchWork` (nothing is
+    /// changed) with the advance's estimated wall time.
     pub fn check_work(&self, t_end: f64) -> Result<(), SimError> {
         let steps = self.estimate_steps(t_end);
         let limit = self.max_steps();
-        if steps > limit {
+        let particles = self.particles();
+        let max_particle_steps = self.max_particle_steps();
+        if steps > limit || steps as f64 * particles as f64 > max_particle_steps as f64 {
             return Err(SimError::TooMuchWork {
                 t_end,
                 steps,
                 limit,
                 dt: self.max_dt(),
+                particles,
+                max_particle_steps,
+                wall_estimate_s: self.estimate_wall_time(steps),
             });
         }
         Ok(())
     }
     /// Advances to t_end, landing on it exactly; returns the steps taken. Refused before any
-    /// step when it would take more than solver.max_steps steps (`SimError::TooMuchWork`).
+    /// step when it would take more work than the scene allows (`SimError::TooMuchWork`, see
+    /// [`Simulation::check_work`]).
     pub fn advance_to(&mut self, t_end: f64) -> Result<u64, SimError> {
+        self.advance_to_with(t_end, |_| true)
+    }
+    /// [`Simulation::advance_to`] calling `on_step(time)` after every solver step (progress
+    /// reports; the steps are the same); it stops the advance after the step with
+    /// `SimError::Interrupted` by returning false.
+    pub fn advance_to_with(
+        &mut self,
+        t_end: f64,
+        on_step: impl FnMut(f64) -> bool,
+    ) -> Result<u64, SimError> {
         self.check_work(t_end)?;
-        with!(self, m => m.world.advance_to(t_end))
+        with!(self, m => m.world.advance_to_with(t_end, on_step))
     }
     /// Replaces the gravity law by `start + rate (t - t0)` (m/s^2, m/s^3, s; simulation time).
     pub fn set_gravity_linear(&mut self, start: [f64; 3], rate: [f64; 3], t0: f64) {

@@ -4,11 +4,13 @@
 //! - [`model_description`]: modelDescription.xml (quick-xml) and the GUID;
 //! - [`instance`]: the safe instance (call-order state machine, doStep, FMU state, threads);
 //! - [`ffi`]: the exported `fmi2*` C functions, the only unsafe code of the crate;
-//! - [`pack`]: builds `NAME.fmu` from a scene and the built library.
+//! - [`pack`]: builds `NAME.fmu` from a scene and the built library;
+//! - [`source_id`]: the identity of the sources the library was built from (checked by pack).
 //!
 //! The layer never touches the solver's fields: it goes through [`crate::sim::Simulation`].
 pub mod ffi;
 pub mod instance;
 pub mod model_description;
 pub mod pack;
+pub mod source_id;
 pub mod variables;

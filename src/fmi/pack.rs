@@ -170,12 +170,131 @@ pub fn check_shared_library(lib: &[u8], symbol: &str) -> Result<(), String> {
     }
 }
 
-/// Builds `out` (NAME.fmu) from a scene and the built library (target/<profile>/libmps_solid.so).
-/// The scene is validated and its model built (a scene that cannot initialise is refused now,
-/// not in the importer); the library must be an ELF shared object exporting fmi2DoStep. The
-/// archive is written to a temporary file beside `out` and renamed onto it when complete, so a
-/// failure leaves no partial FMU (and an existing `out` untouched).
+/// The newest glibc symbol version `lib` needs (e.g. (2, 17)), read from its version needs
+/// (`.gnu.version_r`, what `objdump -T` lists as GLIBC_x.y); None when it names none or `lib` is
+/// not a 64-bit ELF file.
+pub fn newest_glibc(lib: &[u8]) -> Option<(u32, u32)> {
+    use object::read::elf::ElfFile64;
+    let file = ElfFile64::<object::Endianness>::parse(lib).ok()?;
+    let endian = file.endian();
+    let sections = file.elf_section_table();
+    let (mut needs, link) = sections.gnu_verneed(endian, lib).ok()??;
+    let strings = sections.strings(endian, lib, link).ok()?;
+    let mut newest = None;
+    while let Ok(Some((_, mut auxs))) = needs.next() {
+        while let Ok(Some(aux)) = auxs.next() {
+            let Ok(name) = aux.name(endian, strings) else {
+                continue;
+            };
+            let Some(v) = std::str::from_utf8(name)
+                .ok()
+                .and_then(|n| n.strip_prefix("GLIBC_"))
+            else {
+                continue;
+            };
+            let mut parts = v.split('.').map(|p| p.parse::<u32>());
+            if let (Some(Ok(major)), Some(Ok(minor))) = (parts.next(), parts.next()) {
+                newest = newest.max(Some((major, minor)));
+            }
+        }
+    }
+    newest
+}
+
+/// The source id a library was built from (`MPS_SOLID_SOURCE_ID`, src/fmi/source_id.rs), read
+/// from its exported data without loading it; None when it has none (a library of another
+/// program, or of mps-solid before the id).
+pub fn library_source_id(lib: &[u8]) -> Option<String> {
+    use object::{Object, ObjectSection, ObjectSymbol};
+    let file = object::File::parse(lib).ok()?;
+    let sym = file
+        .dynamic_symbols()
+        .find(|s| s.name() == Ok("MPS_SOLID_SOURCE_ID"))?;
+    let section = file.section_by_index(sym.section_index()?).ok()?;
+    let data = section.data().ok()?;
+    let start = usize::try_from(sym.address().checked_sub(section.address())?).ok()?;
+    let bytes = data.get(start..start.checked_add(usize::try_from(sym.size()).ok()?)?)?;
+    let end = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
+    String::from_utf8(bytes[..end].to_vec()).ok()
+}
+
+/// Checks that the library was built from the sources of this program (its source id is
+/// [`SOURCE_ID`](super::source_id::SOURCE_ID)): the modelDescription.xml written here numbers the
+/// variables as this build's table does, and the library reads its variables from its own.
+pub fn check_source_id(lib: &[u8], library: &Path) -> Result<(), String> {
+    let own = super::source_id::SOURCE_ID;
+    match library_source_id(lib) {
+        Some(id) if id == own => Ok(()),
+        found => Err(format!(
+            "{} was built from other sources than this mps ({}; this mps: {own}): its variable \
+             table may not match the modelDescription.xml this mps writes. Rebuild the library \
+             (scripts/build-fmu-lib.sh for the portable one) or this program, from the same \
+             sources",
+            library.display(),
+            match found {
+                Some(id) => format!("its source id: {id}"),
+                None => "it carries no source id".to_string(),
+            }
+        )),
+    }
+}
+
+/// Refuses an output path that names something other than a regular file: a symbolic link
+/// (not followed: the FMU would replace the link, not what it points to), a directory, a named
+/// pipe, a device or a socket. A missing path is fine (the FMU is a new file).
+pub fn check_output_target(out: &Path) -> Result<(), String> {
+    use std::os::unix::fs::FileTypeExt;
+    let meta = match std::fs::symlink_metadata(out) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(format!("cannot inspect the output {}: {e}", out.display())),
+    };
+    let t = meta.file_type();
+    if t.is_file() {
+        return Ok(());
+    }
+    if t.is_symlink() {
+        let to = std::fs::read_link(out)
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|e| format!("unreadable: {e}"));
+        return Err(format!(
+            "the output {} is a symbolic link (to {to}); mps pack follows no link: give the \
+             path it points to, or remove the link",
+            out.display()
+        ));
+    }
+    let what = if t.is_dir() {
+        "a directory"
+    } else if t.is_fifo() {
+        "a named pipe (FIFO)"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    };
+    Err(format!(
+        "the output {} is {what}, not a regular file: the FMU is written beside it and renamed \
+         over it, which would replace it; give the path of a new or regular file (a directory \
+         of FMUs is --out-dir)",
+        out.display()
+    ))
+}
+
+/// Builds `out` (NAME.fmu) from a scene and the built library (scripts/build-fmu-lib.sh, or
+/// target/<profile>/libmps_solid.so). The output must be a new or regular file
+/// ([`check_output_target`]), checked before any work and again before the rename. The scene
+/// is validated and its model built (a scene that cannot initialise is refused now, not in the
+/// importer); the library must be an ELF shared object exporting fmi2DoStep, built from the
+/// sources of this program ([`check_source_id`]). The archive is made in memory, written to a
+/// new temporary file beside `out` and renamed onto it when complete, so a failure leaves no
+/// partial FMU (and an existing `out` untouched); a write error names the file and the OS
+/// reason (e.g. "File too large (os error 27)").
 pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String> {
+    check_output_target(out)?;
     scene.validate().map_err(|e| e.to_string())?;
     if same_file(library, out) {
         return Err(format!(
@@ -187,15 +306,20 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
         .map_err(|e| format!("cannot read the library {}: {e}", library.display()))?;
     check_shared_library(&lib, "fmi2DoStep").map_err(|m| {
         format!(
-            "{} {m}; give the libmps_solid.so built by cargo build --release",
+            "{} {m}; give the libmps_solid.so built by scripts/build-fmu-lib.sh (or cargo build \
+             --release)",
             library.display()
         )
     })?;
+    check_source_id(&lib, library)?;
     let sim = crate::sim::Simulation::new(scene)
         .map_err(|e| format!("the scene's model cannot be built: {e}"))?;
     let xml = super::model_description::packed_model_description_xml(scene)?;
     let doc = documentation_html(scene, &sim);
     drop(sim);
+    let archive = archive(scene, &xml, &doc, &lib)
+        .map_err(|e| format!("cannot make the FMU archive of {}: {e}", out.display()))?;
+    drop(lib);
     let dir = match out.parent().filter(|d| !d.as_os_str().is_empty()) {
         Some(dir) => {
             std::fs::create_dir_all(dir)
@@ -212,10 +336,8 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
         file_name.to_string_lossy(),
         std::process::id()
     ));
-    let file =
-        std::fs::File::create(&tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
-    let result = write_archive(scene, &xml, &doc, &lib, file)
-        .map_err(|e| format!("cannot write {}: {e}", tmp.display()))
+    let result = write_new_file(&tmp, &archive)
+        .and_then(|()| check_output_target(out))
         .and_then(|()| {
             std::fs::rename(&tmp, out)
                 .map_err(|e| format!("cannot rename {} to {}: {e}", tmp.display(), out.display()))
@@ -226,19 +348,30 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
     result
 }
 
-/// Writes the FMU archive into `file` and syncs it.
-fn write_archive(
-    scene: &Scene,
-    xml: &str,
-    doc: &str,
-    lib: &[u8],
-    file: std::fs::File,
-) -> zip::result::ZipResult<()> {
-    let mut z = ZipWriter::new(file);
+/// Writes `data` into a new file `path` (refused if anything exists there, a link included)
+/// and syncs it; errors name the path and the OS reason.
+fn write_new_file(path: &Path, data: &[u8]) -> Result<(), String> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o644)
+        .open(path)
+        .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+    file.write_all(data)
+        .and_then(|()| file.sync_all())
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+/// The FMU archive (zip) in memory: nothing of it reaches a file until it is complete, and the
+/// zip writer never meets an I/O error (its drop would print one).
+fn archive(scene: &Scene, xml: &str, doc: &str, lib: &[u8]) -> zip::result::ZipResult<Vec<u8>> {
+    type Writer = ZipWriter<std::io::Cursor<Vec<u8>>>;
+    let mut z: Writer = ZipWriter::new(std::io::Cursor::new(Vec::new()));
     let opts = SimpleFileOptions::default()
         .compression_method(CompressionMethod::Deflated)
         .unix_permissions(0o644);
-    let add = |z: &mut ZipWriter<std::fs::File>, name: &str, data: &[u8], mode: u32| {
+    let add = |z: &mut Writer, name: &str, data: &[u8], mode: u32| {
         z.start_file(name, opts.unix_permissions(mode))?;
         z.write_all(data)?;
         Ok::<(), zip::result::ZipError>(())
@@ -265,7 +398,5 @@ fn write_archive(
         0o644,
     )?;
     add(&mut z, "documentation/index.html", doc.as_bytes(), 0o644)?;
-    let file = z.finish()?;
-    file.sync_all()?;
-    Ok(())
+    Ok(z.finish()?.into_inner())
 }

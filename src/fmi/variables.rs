@@ -355,7 +355,12 @@ impl VariableTable {
         let ramp = scene
             .gravity
             .paper_ramp_period
-            .map(|t| format!(" (the scene ramps it up with Eq. (46), T = {t} s)"))
+            .map(|t| {
+                format!(
+                    " (the scene ramps it up with Eq. (46), T = {} s)",
+                    limits::num(t)
+                )
+            })
             .unwrap_or_default();
         for (k, axis) in AXES.iter().enumerate().take(d) {
             push(

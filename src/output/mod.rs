@@ -13,7 +13,7 @@ use crate::sim::ParticleSnapshot;
 
 pub use self::png::{
     broken_pairs, write_grid_png_3d, write_png, write_png_3d, Camera, Frame3d, Grid3d, Image3d,
-    Label3d, PanelGeometry, View,
+    Label3d, PanelGeometry, View, MAX_IMAGE_PIXELS,
 };
 pub use self::vtk::{write_vtu, PvdWriter};
 

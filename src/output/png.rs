@@ -1009,7 +1009,7 @@ pub fn write_png_3d(
     let lines = title_layout(snap, label, frame, f64::from(width - 2 * m), 20.0, 16.0);
     let title_h = ROW_H as u32 * lines.len() as u32 + 14;
     let height = title_h + (ph + 2 * m).max(legend_h);
-    let mut buf = vec![255u8; width as usize * height as usize * 3];
+    let mut buf = white_image(path, width, height)?;
     let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
     for (k, (line, size)) in lines.iter().enumerate() {
         root.draw_text(line, &text_style(*size), (m as i32, 8 + ROW_H * k as i32))
@@ -1134,7 +1134,7 @@ pub fn write_grid_png_3d(path: &Path, grid: &Grid3d, frame: &Frame3d) -> Result<
     let footer_h = 120;
     let width = (cols as i32 * cell_w) as u32;
     let height = (header_h + rows as i32 * cell_h + footer_h) as u32;
-    let mut buf = vec![255u8; width as usize * height as usize * 3];
+    let mut buf = white_image(path, width, height)?;
     let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
     let w = f64::from(width) - 2.0 * f64::from(m);
     for (k, line) in title_rows.iter().enumerate() {
@@ -1228,6 +1228,35 @@ fn key_colours(names: &[String]) -> Vec<[u8; 3]> {
     keys.into_iter()
         .map(|RGBColor(r, g, b)| [r, g, b])
         .collect()
+}
+
+/// Largest image drawn (pixels): 40 million, an RGB buffer of 120 MB plus its 40 MB of palette
+/// indices (a Figure 9 of the paper's five instants is 3.6 million).
+pub const MAX_IMAGE_PIXELS: u64 = 40_000_000;
+
+/// A white RGB buffer of `width` x `height` pixels for `path`: refused beyond
+/// [`MAX_IMAGE_PIXELS`], and allocated fallibly (an error, not an abort, when the memory is not
+/// there).
+fn white_image(path: &Path, width: u32, height: u32) -> Result<Vec<u8>, String> {
+    let pixels = u64::from(width) * u64::from(height);
+    if pixels > MAX_IMAGE_PIXELS {
+        return Err(format!(
+            "{} would be {width} x {height} pixels, more than the {MAX_IMAGE_PIXELS} an image may \
+             have",
+            path.display()
+        ));
+    }
+    let bytes = pixels as usize * 3;
+    let mut buf = Vec::new();
+    buf.try_reserve_exact(bytes).map_err(|e| {
+        format!(
+            "{}: no memory for its {width} x {height} pixels ({} MB): {e}",
+            path.display(),
+            bytes / 1_000_000
+        )
+    })?;
+    buf.resize(bytes, 255u8);
+    Ok(buf)
 }
 
 /// Writes an RGB buffer (`size` pixels, rows top down) as an 8-bit indexed PNG: the palette is

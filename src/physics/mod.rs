@@ -38,4 +38,4 @@ macro_rules! par_iter_mut {
 
 pub use dim::{Dim, Mat, Space, Vect};
 pub use params::{BondStrain, ContactOptions, ElasticModel, Material, MaterialLaw, SolverOptions};
-pub use world::{BodyInit, InitialVelocity, SimError, World};
+pub use world::{duration_text, BodyInit, InitialVelocity, SimError, World};

@@ -6,9 +6,16 @@ use serde::{Deserialize, Serialize};
 /// (measured 1977 and 776 bytes per particle; scene::memory has the estimate).
 pub const DEFAULT_MAX_PARTICLES: usize = 2_000_000;
 
-/// Default of `SolverOptions::max_steps`: 2e7 steps of a 10,000-particle scene take about an
-/// hour on one core.
+/// Default of `SolverOptions::max_steps`: it bounds the work of small scenes, whose steps cost
+/// mostly the fixed overhead of a step (2e7 steps of the 280-particle tests/data/small2d.json
+/// take about 25 min on two idle cores); `max_particle_steps` bounds the large ones.
 pub const DEFAULT_MAX_STEPS: u64 = 20_000_000;
+
+/// Default of `SolverOptions::max_particle_steps`: 1e10 particle-steps (particles x solver
+/// steps), about 35 min of wall time on two cores with the corrected operator or second_order
+/// in 2D and about 3 h with second_order in 3D (`Simulation::estimate_wall_time`). The paper's
+/// cases take 1.5e7 (case 1) to 8e7 (case 3 with second_order).
+pub const DEFAULT_MAX_PARTICLE_STEPS: u64 = 10_000_000_000;
 
 /// Isotropic elastic material: its small-strain constants and the large-strain law of the
 /// energy operators.
@@ -111,6 +118,12 @@ pub struct SolverOptions {
     /// Most solver steps one advance may take (work guard): a whole `mps run`, one fmi2DoStep.
     /// An advance that would need more is refused before it starts (>= 1).
     pub max_steps: u64,
+    /// Most particle-steps (particles x solver steps; unit: particle-steps) one advance may
+    /// take: the work guard that follows the wall time, about 0.2 us (2D, corrected in 3D) to
+    /// 1.1 us (second_order in 3D) per particle-step on two cores. An advance that would need
+    /// more is refused before it starts, with its estimated wall time; raise it in the scene
+    /// (`"solver": {"max_particle_steps": 100000000000}`) for a longer run (>= 1).
+    pub max_particle_steps: u64,
     /// Critical bond strain eps_max of Eq. (42) (-): a bond whose strain
     /// (|r_ij| - |r0_ij|) / |r0_ij| exceeds it breaks for good. None: no fracture (and no checks).
     pub fracture_strain: Option<f64>,
@@ -191,6 +204,7 @@ impl Default for SolverOptions {
             damping: 0.0,
             max_particles: DEFAULT_MAX_PARTICLES,
             max_steps: DEFAULT_MAX_STEPS,
+            max_particle_steps: DEFAULT_MAX_PARTICLE_STEPS,
             fracture_strain: None,
             bond_strain: BondStrain::Stretch,
             contact: ContactOptions::default(),

@@ -55,12 +55,16 @@ impl Energies {
     }
 }
 
-/// What a run records besides the probes.
+/// What a run records besides the probes, and how it can be stopped.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RunOptions {
     /// The energies at every output sample (`Series::energy`). Costs a serial pass over the
     /// bonds per sample (about one solver step on two cores).
     pub energy: bool,
+    /// When this flag becomes true (e.g. set by a signal handler), the run stops after the
+    /// current solver step as if it had failed there: `RunResult::error` says so and the series
+    /// keeps what was computed.
+    pub stop: Option<&'static std::sync::atomic::AtomicBool>,
 }
 
 /// What a run reports while it runs.
@@ -71,6 +75,8 @@ pub enum RunEvent<'a> {
     Warning(&'a SceneWarning),
     /// An output sample at this time (s) was taken.
     Sample(f64),
+    /// A solver step ended at `time` (s); `steps` solver steps so far in this run.
+    Step { time: f64, steps: u64 },
 }
 
 /// Result of a run; `error` is set when the solver stopped early (the series keeps what was
@@ -208,16 +214,34 @@ pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunRes
     })
 }
 
-/// [`run_scene`] with options; `on_event` hears of the scene's warnings once it is built and
-/// of every output sample.
+/// Builds a scene's model and refuses, before any step, a scene without a free particle and a
+/// run that would take more work than the scene allows (solver.max_steps,
+/// solver.max_particle_steps; the message gives its estimated wall time). The model is ready
+/// for [`run_prepared`].
+pub fn prepare(scene: &Scene) -> Result<Simulation, String> {
+    let sim = Simulation::new(scene).map_err(|e| e.to_string())?;
+    check_free_particles(&sim)?;
+    sim.check_work(scene.end_time).map_err(|e| e.to_string())?;
+    Ok(sim)
+}
+
+/// [`run_scene`] with options; `on_event` hears of the scene's warnings once it is built, of
+/// every solver step and of every output sample.
 pub fn run_scene_with(
     scene: &Scene,
     opts: RunOptions,
+    on_event: impl FnMut(RunEvent),
+) -> Result<RunResult, String> {
+    run_prepared(scene, prepare(scene)?, opts, on_event)
+}
+
+/// Runs a model built by [`prepare`] from `scene` to the scene's end time.
+pub fn run_prepared(
+    scene: &Scene,
+    mut sim: Simulation,
+    opts: RunOptions,
     mut on_event: impl FnMut(RunEvent),
 ) -> Result<RunResult, String> {
-    let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
-    check_free_particles(&sim)?;
-    sim.check_work(scene.end_time).map_err(|e| e.to_string())?;
     // Reported once the run is sure to start (a refused scene gets its error alone).
     for w in sim.warnings() {
         on_event(RunEvent::Warning(w));
@@ -249,7 +273,15 @@ pub fn run_scene_with(
         } else {
             k as f64 * scene.output_interval
         };
-        if let Err(e) = sim.advance_to(t) {
+        let mut steps = sim.steps();
+        let advanced = sim.advance_to_with(t, |time| {
+            steps += 1;
+            on_event(RunEvent::Step { time, steps });
+            !opts
+                .stop
+                .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+        });
+        if let Err(e) = advanced {
             error = Some(e.to_string());
             break;
         }

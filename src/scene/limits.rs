@@ -134,6 +134,18 @@ pub const OUTPUT_INTERVAL: Range = Range {
     unit: "s",
 };
 
+/// Initial velocity of a body (m/s): each component of `bodies[].velocity` (uniform or
+/// linear), each value of a velocity table, a mode shape's amplitude, and the speed a rotation
+/// gives the body's farthest corner. Impacts on spacecraft shielding reach about 1e4 m/s and
+/// meteoroids 7e4 m/s; beyond 1e5 m/s no solid model applies (and a particle would cross its
+/// spacing in a small fraction of any stable step).
+pub const SPEED: Range = Range {
+    field: "velocity",
+    min: -1e5,
+    max: 1e5,
+    unit: "m/s",
+};
+
 /// Largest number of probe samples end_time / output_interval of a run: the series is kept in
 /// memory and written as CSV (1e6 samples of 10 probes is about 240 MB).
 pub const MAX_OUTPUTS: f64 = 1e6;
@@ -255,6 +267,9 @@ pub const STABILISATION: Bound = Bound::at_least("solver.stabilisation", 0.0);
 /// Steps of one advance (work guard): at least one.
 pub const MAX_STEPS: Bound = Bound::at_least("solver.max_steps", 1.0);
 
+/// Particle-steps (steps times particles) of one advance (work guard): at least one.
+pub const MAX_PARTICLE_STEPS: Bound = Bound::at_least("solver.max_particle_steps", 1.0);
+
 /// n_c of Eq. (41) (-): a positive number-density margin.
 pub const SURFACE_THRESHOLD: Bound = Bound::positive("solver.contact.surface_threshold");
 
@@ -287,6 +302,7 @@ pub const BOUNDS: &[Bound] = &[
     RE_FACTOR,
     STABILISATION,
     MAX_STEPS,
+    MAX_PARTICLE_STEPS,
     SURFACE_THRESHOLD,
     OVERLAP_FRACTION,
     CONTACT_STIFFNESS,
@@ -295,8 +311,11 @@ pub const BOUNDS: &[Bound] = &[
     MODE_SHAPE_LENGTH,
 ];
 
-/// Defaults of `solver.max_steps` and `solver.max_particles` (kept with the solver options).
-pub use crate::physics::params::{DEFAULT_MAX_PARTICLES, DEFAULT_MAX_STEPS};
+/// Defaults of `solver.max_steps`, `solver.max_particle_steps` and `solver.max_particles` (kept
+/// with the solver options).
+pub use crate::physics::params::{
+    DEFAULT_MAX_PARTICLES, DEFAULT_MAX_PARTICLE_STEPS, DEFAULT_MAX_STEPS,
+};
 
 /// A number for a message: the shortest text that reads back to the same f64, in plain notation
 /// for 1e-4 <= |v| < 1e7 and in scientific notation otherwise (never hundreds of digits).

@@ -221,7 +221,7 @@ impl Scene {
     pub fn from_json(text: &str) -> Result<Scene, SceneError> {
         let mut de = serde_json::Deserializer::from_str(text);
         let s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(&mut de))
-            .map_err(|e| err(e.path().to_string(), e.inner().to_string()))?;
+            .map_err(|e| err(e.path().to_string(), in_words(&e.inner().to_string())))?;
         de.end().map_err(|e| {
             err(
                 "<end of the scene>",
@@ -236,8 +236,21 @@ impl Scene {
     /// Parses TOML.
     pub fn from_toml(text: &str) -> Result<Scene, SceneError> {
         let de = toml::Deserializer::new(text);
-        let s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(de))
-            .map_err(|e| err(e.path().to_string(), e.inner().to_string()))?;
+        let s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(de)).map_err(|e| {
+            let field = e.path().to_string();
+            let inner = e.into_inner();
+            // One line: the reason and where (toml's own text adds a snippet of the file).
+            let at = inner.span().map_or(String::new(), |span| {
+                let before = &text[..span.start.min(text.len())];
+                let line = before.matches('\n').count() + 1;
+                let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+                format!(" (line {line}, column {column})")
+            });
+            err(
+                field,
+                format!("{}{at}", in_words(inner.message().trim_end())),
+            )
+        })?;
         s.validate()?;
         Ok(s)
     }
@@ -310,6 +323,7 @@ impl Scene {
             ranged("", &limits::FRACTURE_STRAIN, e)?;
         }
         bounded(&limits::MAX_STEPS, o.max_steps as f64)?;
+        bounded(&limits::MAX_PARTICLE_STEPS, o.max_particle_steps as f64)?;
         let c = &o.contact;
         bounded(&limits::SURFACE_THRESHOLD, c.surface_threshold)?;
         bounded(&limits::OVERLAP_FRACTION, c.overlap_fraction)?;
@@ -371,7 +385,7 @@ impl Scene {
                 self.cell_counts(r, &format!("{f}.boxes[{j}]"))?;
             }
             if let Some(v) = &b.velocity {
-                velocity::validate(&format!("{f}.velocity"), v, d)?;
+                velocity::validate(&format!("{f}.velocity"), v, d, &b.boxes)?;
             }
         }
         let total = self.particle_bound();
@@ -438,11 +452,18 @@ impl Scene {
             if self.probes[..k].iter().any(|o| o.name == p.name) {
                 return Err(err(format!("{f}.name"), "duplicate probe name"));
             }
-            if self.loads.iter().any(|l| l.name == p.name) {
+            if let Some(j) = self.loads.iter().position(|l| l.name == p.name) {
+                let n = &p.name;
                 return Err(err(
                     format!("{f}.name"),
-                    "a load region has the same name: the FMU outputs <name>.ux/.vx of both would \
-                     collide",
+                    format!(
+                        "the load region loads[{j}] has the same name '{n}': an FMU names the \
+                         outputs of both {n}.ux, {n}.uy, {n}.vx, ... (the probe's displacement and \
+                         velocity, the load region's mean ones), so they would collide. Rename \
+                         one of them, e.g. the probe to '{n}_probe' (its column in probes.csv and \
+                         its FMU outputs follow), or the load region (its inputs {n}.fx/.fy/.fz \
+                         follow)"
+                    ),
                 ));
             }
             let inside = |b: &Body| {
@@ -529,6 +550,19 @@ impl Scene {
             })
             .collect()
     }
+}
+
+/// A serde message in the words of a scene: the Rust type a number must fit ("expected usize")
+/// becomes what to write ("expected a whole number, e.g. 3 (not 3.0)").
+fn in_words(message: &str) -> String {
+    let mut m = message.to_string();
+    for ty in ["usize", "u64", "u32", "u8"] {
+        m = m.replace(
+            &format!("expected {ty}"),
+            "expected a whole number, e.g. 3 (not 3.0)",
+        );
+    }
+    m.replace("expected f64", "expected a number")
 }
 
 /// Longest scene file read (bytes): a scene is a few kB, this keeps a wrong file from being

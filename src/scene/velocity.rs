@@ -19,7 +19,7 @@
 //! ```
 //!
 //! The array is the original form (a uniform velocity); null or no field is rest.
-use super::limits::num;
+use super::limits::{self, num};
 use super::{axis_index, err, SceneError};
 use schemars::JsonSchema;
 use serde::{de, Deserialize, Deserializer, Serialize, Serializer};
@@ -253,6 +253,20 @@ fn finite(field: &str, v: f64) -> Result<(), SceneError> {
     }
 }
 
+/// A velocity (m/s) within [`limits::SPEED`].
+fn speed(field: &str, v: f64) -> Result<(), SceneError> {
+    limits::SPEED.check(v).map_err(|m| err(field, m))
+}
+
+/// A velocity vector: `d` components, each within [`limits::SPEED`].
+fn velocities(field: &str, v: &[f64], d: usize) -> Result<(), SceneError> {
+    components(field, v, d)?;
+    for (k, c) in v.iter().enumerate() {
+        speed(&format!("{field}[{k}]"), *c)?;
+    }
+    Ok(())
+}
+
 fn components(field: &str, v: &[f64], d: usize) -> Result<(), SceneError> {
     if v.len() != d {
         return Err(err(
@@ -281,13 +295,21 @@ fn axis(field: &str, name: &str, d: usize) -> Result<usize, SceneError> {
 }
 
 /// Checks a body's initial velocity; `field` is the path of the `velocity` field.
-pub(crate) fn validate(field: &str, v: &BodyVelocity, d: usize) -> Result<(), SceneError> {
+/// Checks a body's velocity: every number finite, every velocity in [`limits::SPEED`] (each
+/// component, table value and amplitude, and the speed a rotation gives the farthest corner of
+/// the body's `boxes`).
+pub(crate) fn validate(
+    field: &str,
+    v: &BodyVelocity,
+    d: usize,
+    boxes: &[super::Region],
+) -> Result<(), SceneError> {
     let f = match v {
-        BodyVelocity::Uniform(u) => return components(field, u, d),
+        BodyVelocity::Uniform(u) => return velocities(field, u, d),
         BodyVelocity::Field(f) => f,
     };
     if let Some(l) = &f.linear {
-        components(&format!("{field}.linear"), l, d)?;
+        velocities(&format!("{field}.linear"), l, d)?;
     }
     if let Some(a) = &f.angular {
         let of = format!("{field}.angular.omega");
@@ -308,6 +330,42 @@ pub(crate) fn validate(field: &str, v: &BodyVelocity, d: usize) -> Result<(), Sc
             }
         }
         components(&format!("{field}.angular.center"), &a.center, d)?;
+        let w = match &a.omega {
+            Omega::Scalar(w) => w.abs(),
+            Omega::Vector(w) => w.iter().map(|c| c * c).sum::<f64>().sqrt(),
+        };
+        // The farthest box corner from the centre bounds every particle's distance.
+        let r = boxes
+            .iter()
+            .flat_map(|b| {
+                (0..1usize << d).map(move |corner| {
+                    (0..d)
+                        .map(|k| {
+                            let x = if corner >> k & 1 == 1 {
+                                b.max[k]
+                            } else {
+                                b.min[k]
+                            };
+                            (x - a.center[k]).powi(2)
+                        })
+                        .sum::<f64>()
+                        .sqrt()
+                })
+            })
+            .fold(0.0, f64::max);
+        if !limits::SPEED.contains(w * r) {
+            return Err(err(
+                of,
+                format!(
+                    "{} rad/s turns the body's farthest corner, {} m from the centre, at {} m/s, \
+                     outside the initial speed range {}",
+                    num(w),
+                    num(r),
+                    num(w * r),
+                    limits::SPEED.describe()
+                ),
+            ));
+        }
     }
     for (k, p) in f.profiles.iter().enumerate() {
         match p {
@@ -323,7 +381,7 @@ pub(crate) fn validate(field: &str, v: &BodyVelocity, d: usize) -> Result<(), Sc
                 }
                 for (j, [s, v]) in t.points.iter().enumerate() {
                     finite(&format!("{pf}.points[{j}][0]"), *s)?;
-                    finite(&format!("{pf}.points[{j}][1]"), *v)?;
+                    speed(&format!("{pf}.points[{j}][1]"), *v)?;
                     if j > 0 && *s <= t.points[j - 1][0] {
                         return Err(err(
                             format!("{pf}.points[{j}]"),
@@ -361,7 +419,7 @@ pub(crate) fn validate(field: &str, v: &BodyVelocity, d: usize) -> Result<(), Sc
                         ),
                     ));
                 }
-                finite(&format!("{pf}.amplitude"), m.amplitude)?;
+                speed(&format!("{pf}.amplitude"), m.amplitude)?;
             }
         }
     }

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use crate::output::{write_grid_png_3d, write_png_3d, Camera, Frame3d, Grid3d, Label3d};
 use crate::physics::{ContactOptions, ElasticModel, Material, MaterialLaw, SolverOptions};
+use crate::scene::limits::num;
 use crate::scene::{
     Body, BodyVelocity, Boundary, BoundaryKind, Gravity, MirrorSpec, Probe, Region, Scene,
 };
@@ -517,6 +518,16 @@ pub struct Figure9Panel {
     pub stopped: bool,
 }
 
+/// Most instants of a Figure 9 (the paper's has five): each is a row of the composite image
+/// (both runs side by side, about [`FIGURE9_ROW_PX`] pixels tall and 1200 wide) and a snapshot
+/// of each run kept until the end. 20 rows are about 13 million pixels, within
+/// [`crate::output::MAX_IMAGE_PIXELS`].
+pub const FIGURE9_MAX_INSTANTS: usize = 20;
+
+/// Height of a row of the Figure 9 composite (pixels, about: the title lines of its panels
+/// add to it).
+pub const FIGURE9_ROW_PX: usize = 550;
+
 /// Collects the snapshots of one case 3 run at given instants: pass [`Figure9Capture::check`]
 /// to [`case3_report_with`] (with event checks that land on the instants, e.g. every 2.5 ms
 /// for the paper's), then [`Figure9Capture::finish`].
@@ -536,11 +547,34 @@ impl Figure9Capture {
         }
         if let Some(t) = times.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
             return Err(format!(
-                "Figure 9 instants must be finite times >= 0 s, got {t}"
+                "Figure 9 instants must be finite times >= 0 s, got {}",
+                num(*t)
+            ));
+        }
+        if times.len() > FIGURE9_MAX_INSTANTS {
+            return Err(format!(
+                "Figure 9 takes at most {FIGURE9_MAX_INSTANTS} instants, got {}: its composite \
+                 image has a row of about {FIGURE9_ROW_PX} pixels per instant ({} rows: about \
+                 {} million pixels, more than an image may have) and every instant keeps a \
+                 snapshot of each run in memory; give fewer instants, or run case3 --snapshots \
+                 for a snapshot every 0.1 s",
+                times.len(),
+                times.len(),
+                (times.len() * FIGURE9_ROW_PX * 1200).div_ceil(1_000_000)
             ));
         }
         if times.windows(2).any(|w| w[1] <= w[0]) {
-            return Err(format!("Figure 9 instants must increase, got {times:?}"));
+            let k = times
+                .windows(2)
+                .position(|w| w[1] <= w[0])
+                .expect("found above");
+            return Err(format!(
+                "Figure 9 instants must increase, got {} s after {} s (instants {} and {})",
+                num(times[k + 1]),
+                num(times[k]),
+                k + 1,
+                k + 2
+            ));
         }
         Ok(Figure9Capture {
             times: times.to_vec(),
@@ -592,8 +626,10 @@ impl Figure9Capture {
                     stopped: true,
                 }),
                 (None, None) => Err(format!(
-                    "{}: the run ended at {} s, before the Figure 9 instant {t} s",
-                    report.scene, report.end_time
+                    "{}: the run ended at {} s, before the Figure 9 instant {} s",
+                    report.scene,
+                    num(report.end_time),
+                    num(t)
                 )),
             })
             .collect()
@@ -608,6 +644,65 @@ pub struct Figure9Column {
     pub tag: String,
     pub panels: Vec<Figure9Panel>,
     pub failure: Option<String>,
+}
+
+/// The file name stem of Figure 9 (`--figure9-name`): not empty, no path separator, NUL or
+/// control character, not "." or "..".
+fn check_figure9_name_text(name: &str) -> Result<(), String> {
+    if name.is_empty()
+        || name == "."
+        || name == ".."
+        || name.contains(['/', '\\'])
+        || name.chars().any(char::is_control)
+    {
+        return Err(format!(
+            "Figure 9 name {name:?} must be a non-empty file name stem (no '/', '\\' or control \
+             character)"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks the Figure 9 name before any run: a valid stem ([`write_figure9`]'s check), short
+/// enough for its longest file name (NAME_without_tT.png for the instants `times`) and a name
+/// under which a file can be created in `dir` (tried with that longest name and removed).
+pub fn check_figure9_name(dir: &Path, name: &str, times: &[f64]) -> Result<(), String> {
+    check_figure9_name_text(name)?;
+    let longest = times
+        .iter()
+        .map(|&t| format!("{name}_without_t{}.png", time_tag(t)))
+        .chain(std::iter::once(format!("{name}.png")))
+        .max_by_key(String::len)
+        .expect("one name at least");
+    if longest.len() > 255 {
+        return Err(format!(
+            "Figure 9 name is {} bytes long: its file {longest:.40}... would be {} bytes, more \
+             than a file name may have (255)",
+            name.len(),
+            longest.len()
+        ));
+    }
+    let probe = dir.join(format!(".{longest}.{}", std::process::id()));
+    let probe = if probe.file_name().is_some_and(|f| f.len() > 255) {
+        dir.join(&longest)
+    } else {
+        probe
+    };
+    if !probe.exists() {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&probe)
+            .map_err(|e| {
+                format!(
+                    "Figure 9 cannot be written into {}: {}: {e}",
+                    dir.display(),
+                    probe.display()
+                )
+            })?;
+        let _ = std::fs::remove_file(&probe);
+    }
+    Ok(())
 }
 
 /// `t` as a short file-name part: two decimals, three when needed (0.07 -> "0.07",
@@ -655,11 +750,7 @@ pub fn write_figure9(
             ));
         }
     }
-    if name.is_empty() || name.contains(['/', '\\']) {
-        return Err(format!(
-            "Figure 9 name `{name}` must be a non-empty file name stem"
-        ));
-    }
+    check_figure9_name_text(name)?;
     std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
     let snaps: Vec<&ParticleSnapshot> = columns
         .iter()

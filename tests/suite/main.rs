@@ -7,6 +7,7 @@ mod c_abi;
 mod case3_short;
 mod cli_errors;
 mod cli_outputs;
+mod cli_reliability;
 #[path = "../common/mod.rs"]
 mod common;
 mod contact_collision;

@@ -1,6 +1,8 @@
-//! `mps pack` (issue 8, item 16): only the FMU library is packed, a scene that cannot be built
-//! or whose text the modelDescription.xml cannot hold is refused, the output never replaces the
-//! scene, a failed write leaves no partial .fmu, and IO errors name the path and the OS reason.
+//! `mps pack` (issue 8, item 16; issue 27, items 1 and 6): only the FMU library is packed, built
+//! from the same sources, the portable one by default; a scene that cannot be built or whose
+//! text the modelDescription.xml cannot hold is refused, the output is never the scene nor
+//! anything but a regular file (no device, pipe, directory, and no link followed), a failed write
+//! leaves no partial .fmu, and IO errors name the path and the OS reason.
 use crate::common;
 
 use mps_solid::fmi::pack::{check_shared_library, pack_fmu};
@@ -107,10 +109,25 @@ fn a_failed_write_leaves_no_partial_fmu_and_names_path_and_reason() {
     let r = Command::new("sh").arg("-c").arg(&cmd).output().unwrap();
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success(), "{err}");
+    // One error line with the file and the OS reason; no line of the zip writer's drop.
     assert!(
-        err.contains("File too large") && err.contains(d.to_str().unwrap()),
+        err.contains("File too large (os error 27)") && err.contains(d.to_str().unwrap()),
         "{err}"
     );
+    assert!(!err.contains("ZipWriter"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(listing(&d).is_empty(), "left behind: {:?}", listing(&d));
+    // Without the shell ignoring SIGXFSZ: mps ignores it, so the signal does not kill it
+    // half way (which would leave the temporary file) and the error is the same.
+    let untrapped = cmd.replace("trap '' XFSZ; ", "");
+    let r = Command::new("sh")
+        .arg("-c")
+        .arg(&untrapped)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("File too large (os error 27)"), "{err}");
     assert!(listing(&d).is_empty(), "left behind: {:?}", listing(&d));
     // An existing FMU is not touched by a failed pack.
     std::fs::write(&out, b"previous").unwrap();
@@ -118,12 +135,12 @@ fn a_failed_write_leaves_no_partial_fmu_and_names_path_and_reason() {
     assert!(!r.status.success());
     assert_eq!(std::fs::read(&out).unwrap(), b"previous");
     assert_eq!(listing(&d), vec!["small2d.fmu"]);
-    // An output that is a directory: the rename fails, with both paths and the reason.
+    // An output that is a directory: refused before any work, naming it.
     let dir_out = d.join("a_dir.fmu");
     std::fs::create_dir(&dir_out).unwrap();
     let e = pack_fmu(&small2d(), &common::built_library(), &dir_out).unwrap_err();
     assert!(
-        e.contains(dir_out.to_str().unwrap()) && e.contains("os error"),
+        e.contains(dir_out.to_str().unwrap()) && e.contains("is a directory"),
         "{e}"
     );
     assert_eq!(listing(&d), vec!["a_dir.fmu", "small2d.fmu"]);
@@ -172,4 +189,197 @@ fn the_output_is_never_the_scene() {
     let e = pack_fmu(&small2d(), &lib_copy, &lib_copy).unwrap_err();
     assert!(e.contains("is the library itself"), "{e}");
     std::fs::remove_dir_all(&d).ok();
+}
+
+/// `mps pack small2d --lib <built> --out <out>`: its exit status and stderr.
+fn pack_cli(out: &Path) -> (bool, String) {
+    let r = Command::new(env!("CARGO_BIN_EXE_mps"))
+        .arg("pack")
+        .arg(root().join("tests/data/small2d.json"))
+        .arg("--lib")
+        .arg(common::built_library())
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    (
+        r.status.success(),
+        String::from_utf8_lossy(&r.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn an_output_that_is_not_a_regular_file_is_refused_and_left_alone() {
+    use std::os::unix::fs::FileTypeExt;
+    let d = scratch("target");
+    // A named pipe: refused (it was replaced by the zip before), still a pipe.
+    let fifo = d.join("pipe.fmu");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let (ok, e) = pack_cli(&fifo);
+    assert!(
+        !ok && e.contains(fifo.to_str().unwrap()) && e.contains("named pipe (FIFO)"),
+        "{e}"
+    );
+    assert!(std::fs::symlink_metadata(&fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
+    // A symbolic link to a file: not followed and not replaced; the file keeps its bytes.
+    let target = d.join("real.fmu");
+    std::fs::write(&target, b"previous").unwrap();
+    let link = d.join("link.fmu");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let (ok, e) = pack_cli(&link);
+    assert!(
+        !ok && e.contains("is a symbolic link") && e.contains(target.to_str().unwrap()),
+        "{e}"
+    );
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(std::fs::read(&target).unwrap(), b"previous");
+    // A dangling link too (the FMU would appear wherever it points).
+    let dangling = d.join("dangling.fmu");
+    std::os::unix::fs::symlink(d.join("nowhere/x.fmu"), &dangling).unwrap();
+    let (ok, e) = pack_cli(&dangling);
+    assert!(!ok && e.contains("is a symbolic link"), "{e}");
+    // A directory.
+    let dir = d.join("dir.fmu");
+    std::fs::create_dir(&dir).unwrap();
+    let (ok, e) = pack_cli(&dir);
+    assert!(!ok && e.contains("is a directory"), "{e}");
+    // A character device: as root, a null device made in the scratch directory (never a device
+    // of /dev, which an unfixed mps would replace); otherwise /dev/null, which a user cannot
+    // replace anyway.
+    let root_user = unsafe { libc::geteuid() } == 0;
+    let device = if root_user {
+        let dev = d.join("null.fmu");
+        assert!(Command::new("mknod")
+            .arg(&dev)
+            .args(["c", "1", "3"])
+            .status()
+            .unwrap()
+            .success());
+        dev
+    } else {
+        PathBuf::from("/dev/null")
+    };
+    let (ok, e) = pack_cli(&device);
+    assert!(!ok && e.contains("is a character device"), "{e}");
+    assert!(std::fs::symlink_metadata(&device)
+        .unwrap()
+        .file_type()
+        .is_char_device());
+    // Nothing else was created (no temporary file left).
+    let mut want = vec![
+        "dangling.fmu",
+        "dir.fmu",
+        "link.fmu",
+        "pipe.fmu",
+        "real.fmu",
+    ];
+    if root_user {
+        want.insert(3, "null.fmu");
+    }
+    assert_eq!(listing(&d), want);
+    // A regular file is replaced.
+    let (ok, e) = pack_cli(&target);
+    assert!(ok, "{e}");
+    assert_eq!(&std::fs::read(&target).unwrap()[..2], b"PK");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn only_a_library_of_the_same_sources_is_packed() {
+    use mps_solid::fmi::pack::{library_source_id, newest_glibc};
+    use mps_solid::fmi::source_id::SOURCE_ID;
+    let lib = std::fs::read(common::built_library()).unwrap();
+    assert_eq!(library_source_id(&lib).as_deref(), Some(SOURCE_ID));
+    assert!(SOURCE_ID.starts_with("mps-solid "), "{SOURCE_ID}");
+    // The build's glibc is read from the version needs (what objdump -T lists).
+    let (major, minor) = newest_glibc(&lib).unwrap();
+    assert!(major == 2 && minor >= 2, "{major}.{minor}");
+    // The same library with another source id (one digit changed) is refused.
+    let at = lib
+        .windows(SOURCE_ID.len())
+        .position(|w| w == SOURCE_ID.as_bytes())
+        .unwrap();
+    let mut other = lib.clone();
+    let last = at + SOURCE_ID.len() - 1;
+    other[last] = if other[last] == b'0' { b'1' } else { b'0' };
+    let d = scratch("source");
+    let other_path = d.join("libother.so");
+    std::fs::write(&other_path, &other).unwrap();
+    assert_ne!(library_source_id(&other).as_deref(), Some(SOURCE_ID));
+    let e = pack_fmu(&small2d(), &other_path, &d.join("x.fmu")).unwrap_err();
+    assert!(
+        e.contains("libother.so") && e.contains("built from other sources"),
+        "{e}"
+    );
+    assert_eq!(listing(&d), vec!["libother.so"]);
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn pack_ships_the_portable_library_by_default() {
+    // A copy of the program in a target directory of its own (hard links: same file system),
+    // with a non-library where the release library would be, so that packing it would fail.
+    let t = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("pack-default-{}", std::process::id()));
+    std::fs::remove_dir_all(&t).ok();
+    let release = t.join("target/release");
+    std::fs::create_dir_all(&release).unwrap();
+    let exe = release.join("mps");
+    std::fs::hard_link(env!("CARGO_BIN_EXE_mps"), &exe)
+        .or_else(|_| std::fs::copy(env!("CARGO_BIN_EXE_mps"), &exe).map(|_| ()))
+        .unwrap();
+    std::fs::write(release.join("libmps_solid.so"), b"not the library to ship").unwrap();
+    let fmu = t.join("small2d.fmu");
+    let pack = || {
+        Command::new(&exe)
+            .arg("pack")
+            .arg(root().join("tests/data/small2d.json"))
+            .arg("--out")
+            .arg(&fmu)
+            .output()
+            .unwrap()
+    };
+    // Not built yet: an error that says how, and no FMU.
+    let r = pack();
+    let e = String::from_utf8_lossy(&r.stderr);
+    let portable = t.join("target/x86_64-unknown-linux-gnu/fmu/libmps_solid.so");
+    assert!(!r.status.success(), "{e}");
+    assert!(
+        e.contains(portable.to_str().unwrap()) && e.contains("scripts/build-fmu-lib.sh"),
+        "{e}"
+    );
+    assert!(!fmu.exists());
+    // Built (here: this build's library standing in for it): it is what the FMU carries.
+    std::fs::create_dir_all(portable.parent().unwrap()).unwrap();
+    std::fs::copy(common::built_library(), &portable).unwrap();
+    let r = pack();
+    let out = String::from_utf8_lossy(&r.stdout);
+    assert!(
+        r.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    assert!(
+        out.contains(portable.to_str().unwrap()) && out.contains("needs glibc >= 2."),
+        "{out}"
+    );
+    let mut z = zip::ZipArchive::new(std::fs::File::open(&fmu).unwrap()).unwrap();
+    let mut shipped = Vec::new();
+    std::io::Read::read_to_end(
+        &mut z.by_name("binaries/linux64/small2d.so").unwrap(),
+        &mut shipped,
+    )
+    .unwrap();
+    assert!(shipped == std::fs::read(&portable).unwrap());
+    std::fs::remove_dir_all(&t).ok();
 }

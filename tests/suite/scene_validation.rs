@@ -520,7 +520,13 @@ fn load_region_names_are_unique_and_distinct_from_probe_names() {
     v["loads"] = serde_json::json!([{ "name": probe, "body": body, "region": region }]);
     let e = error_of(v.clone());
     assert!(
-        e.contains(".name") && e.contains("a load region has the same name"),
+        e.contains("probes[0] ('max').name")
+            && e.contains(&format!(
+                "the load region loads[0] has the same name '{probe}'"
+            ))
+            && e.contains(&format!(
+                "Rename one of them, e.g. the probe to '{probe}_probe'"
+            )),
         "{e}"
     );
     v["loads"] = serde_json::json!([

@@ -5,7 +5,9 @@ use clap::{Parser, Subcommand, ValueEnum};
 mod studies;
 use indicatif::{ProgressBar, ProgressStyle};
 use mps_solid::physics::ElasticModel;
-use mps_solid::runner::{energy_csv, run_scene_with, series_csv, RunEvent, RunOptions};
+mod run_outputs;
+mod run_progress;
+use mps_solid::runner::{energy_csv, prepare, run_prepared, series_csv, RunOptions};
 use mps_solid::Scene;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -67,7 +69,10 @@ enum Cmd {
         /// Directory for the FMUs, <scene name>.fmu each.
         #[arg(long)]
         out_dir: Option<PathBuf>,
-        /// The built library (default: libmps_solid.so next to this program).
+        /// The library to ship (default: the portable one that scripts/build-fmu-lib.sh builds,
+        /// target/x86_64-unknown-linux-gnu/fmu/libmps_solid.so of the target directory this
+        /// program was built in: stripped, linked against glibc 2.17). It must be built from the
+        /// same sources as this program.
         #[arg(long)]
         lib: Option<PathBuf>,
         /// Write each scene's modelDescription.xml (without its generation time) as DIR/<name>.xml.
@@ -106,6 +111,13 @@ fn progress(len: f64, label: &str) -> ProgressBar {
 }
 
 fn main() -> ExitCode {
+    // A file-size limit (ulimit -f) makes a write fail with "File too large" (EFBIG), reported
+    // with the file's name, instead of killing the program by SIGXFSZ with a partial file left.
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_IGN before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(e) => {
@@ -122,77 +134,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             out,
             energy,
             json,
-        } => {
-            let sc = Scene::load(&scene).map_err(|e| e.to_string())?;
-            // The output files are opened before the run, so an unusable --out fails now.
-            std::fs::create_dir_all(&out)
-                .map_err(|e| format!("cannot create the directory {}: {e}", out.display()))?;
-            let csv = out.join("probes.csv");
-            let summary_path = out.join("summary.json");
-            let energy_path = out.join("energy.csv");
-            let open = |p: &std::path::Path| {
-                std::fs::File::create(p).map_err(|e| format!("cannot write {}: {e}", p.display()))
-            };
-            let (mut csv_file, mut summary_file) = (open(&csv)?, open(&summary_path)?);
-            let mut energy_file = if energy {
-                Some(open(&energy_path)?)
-            } else {
-                None
-            };
-            let pb = progress(sc.end_time, &sc.name);
-            let r = run_scene_with(&sc, RunOptions { energy }, |e| match e {
-                RunEvent::Warning(w) => pb.suspend(|| eprintln!("warning: {w}")),
-                RunEvent::Sample(t) => pb.set_position((t * 1e6) as u64),
-            });
-            pb.finish_and_clear();
-            let r = r.inspect_err(|_| {
-                // Leave no empty output files behind a refused run.
-                let _ = std::fs::remove_file(&csv);
-                let _ = std::fs::remove_file(&summary_path);
-                if energy {
-                    let _ = std::fs::remove_file(&energy_path);
-                }
-            })?;
-            use std::io::Write;
-            csv_file
-                .write_all(series_csv(&r.series, r.dimension).as_bytes())
-                .map_err(|e| format!("cannot write {}: {e}", csv.display()))?;
-            if let Some(f) = &mut energy_file {
-                f.write_all(energy_csv(&r.series).as_bytes())
-                    .map_err(|e| format!("cannot write {}: {e}", energy_path.display()))?;
-            }
-            let mut summary = serde_json::to_value(&r).expect("serialisable");
-            summary.as_object_mut().expect("object").remove("series");
-            summary_file
-                .write_all(serde_json::to_string_pretty(&summary).unwrap().as_bytes())
-                .map_err(|e| format!("cannot write {}: {e}", summary_path.display()))?;
-            if json {
-                println!("{}", serde_json::to_string(&r).unwrap());
-            } else {
-                println!(
-                    "{}: {} particles, {} bonds, {} steps of {:.3e} s (critical {:.3e} s) to t = {} s in {:.2} s ({:.3e} pair-updates/s)",
-                    r.scene, r.particles, r.bonds, r.steps, r.dt, r.critical_dt, r.end_time, r.wall_time_s, r.pair_updates_per_s
-                );
-                for (name, u) in &r.final_displacement {
-                    println!(
-                        "  probe {name}: u = [{:.6e}, {:.6e}, {:.6e}] m",
-                        u[0], u[1], u[2]
-                    );
-                }
-                if let (Some(f), Some(p)) = (r.frequency_hz, r.peak_m) {
-                    println!("  frequency {f:.4} Hz, peak {p:.6e} m");
-                }
-                println!("  series written to {}", csv.display());
-                if energy {
-                    println!("  energies written to {}", energy_path.display());
-                }
-            }
-            if let Some(e) = &r.error {
-                eprintln!("error: the run stopped early: {e}");
-                return Ok(ExitCode::FAILURE);
-            }
-            Ok(ExitCode::SUCCESS)
-        }
+        } => run_command(&scene, &out, energy, json),
         Cmd::Pack {
             scenes,
             out,
@@ -207,9 +149,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             }
             let lib = match lib {
                 Some(l) => l,
-                None => std::env::current_exe()
-                    .map_err(|e| format!("cannot locate this program (for --lib): {e}"))?
-                    .with_file_name("libmps_solid.so"),
+                None => portable_library()?,
             };
             let mut failed = false;
             for scene in &scenes {
@@ -255,6 +195,123 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
     }
 }
 
+/// Set by SIGINT or SIGTERM during `mps run`: the run stops after its current step and writes
+/// what it computed as partial results (a second signal ends the program at once).
+static STOP: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+extern "C" fn on_interrupt(sig: libc::c_int) {
+    if STOP.swap(true, std::sync::atomic::Ordering::Relaxed) {
+        // SAFETY: signal and raise are async-signal-safe; the default action ends the program.
+        unsafe {
+            libc::signal(sig, libc::SIG_DFL);
+            libc::raise(sig);
+        }
+    }
+}
+
+/// SIGINT and SIGTERM set [`STOP`] while this lives (the stepping of `mps run`); dropped, the
+/// default actions are back.
+struct StopOnInterrupt;
+
+impl StopOnInterrupt {
+    fn install() -> StopOnInterrupt {
+        let handler = on_interrupt as extern "C" fn(libc::c_int) as libc::sighandler_t;
+        // SAFETY: the handler only touches an atomic and async-signal-safe functions.
+        unsafe {
+            libc::signal(libc::SIGINT, handler);
+            libc::signal(libc::SIGTERM, handler);
+        }
+        StopOnInterrupt
+    }
+}
+
+impl Drop for StopOnInterrupt {
+    fn drop(&mut self) {
+        // SAFETY: restoring the default dispositions.
+        unsafe {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            libc::signal(libc::SIGTERM, libc::SIG_DFL);
+        }
+    }
+}
+
+/// `mps run`: the scene is built and checked first (a refusal touches no file), then the output
+/// files are opened as temporary files in --out (an unusable directory fails before the run),
+/// the run reports its progress on stderr, and the results replace the previous ones only when
+/// the run completed. A run that stops early (blow-up, overlap) leaves the previous complete
+/// results as they were and writes what it computed under names that say so:
+/// probes.partial.csv, summary.partial.json (with the error) and energy.partial.csv; so does a
+/// run stopped by Ctrl-C (SIGINT) or SIGTERM, after its current step.
+fn run_command(
+    scene: &std::path::Path,
+    out: &std::path::Path,
+    energy: bool,
+    json: bool,
+) -> Result<ExitCode, String> {
+    let sc = Scene::load(scene).map_err(|e| e.to_string())?;
+    let sim = prepare(&sc)?;
+    let mut files = run_outputs::RunOutputs::open(out, energy)?;
+    let mut progress = run_progress::RunProgress::new(&sc, &sim);
+    let _interrupt = StopOnInterrupt::install();
+    let opts = RunOptions {
+        energy,
+        stop: Some(&STOP),
+    };
+    let r = run_prepared(&sc, sim, opts, |e| progress.event(e));
+    progress.finish();
+    // A run refused or failed without results: the temporary files go, nothing else changes.
+    let r = r?;
+    let mut summary = serde_json::to_value(&r).map_err(|e| e.to_string())?;
+    if let Some(o) = summary.as_object_mut() {
+        o.remove("series");
+    }
+    let summary = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    let energy_text = energy.then(|| energy_csv(&r.series));
+    let written = files.commit(
+        &series_csv(&r.series, r.dimension),
+        &summary,
+        energy_text.as_deref(),
+        r.error.is_none(),
+    )?;
+    if json {
+        println!("{}", serde_json::to_string(&r).map_err(|e| e.to_string())?);
+    } else {
+        println!(
+            "{}: {} particles, {} bonds, {} steps of {:.3e} s (critical {:.3e} s) to t = {} s in {:.2} s ({:.3e} pair-updates/s)",
+            r.scene, r.particles, r.bonds, r.steps, r.dt, r.critical_dt, r.end_time, r.wall_time_s, r.pair_updates_per_s
+        );
+        for (name, u) in &r.final_displacement {
+            println!(
+                "  probe {name}: u = [{:.6e}, {:.6e}, {:.6e}] m",
+                u[0], u[1], u[2]
+            );
+        }
+        if let (Some(f), Some(p)) = (r.frequency_hz, r.peak_m) {
+            println!("  frequency {f:.4} Hz, peak {p:.6e} m");
+        }
+        println!("  series written to {}", written.probes.display());
+        if let Some(e) = &written.energy {
+            println!("  energies written to {}", e.display());
+        }
+    }
+    if let Some(e) = &r.error {
+        eprintln!(
+            "error: the run stopped early at t = {} s: {e}\n  what it computed up to then is in \
+             {} and {}{}; the complete results of an earlier run in {} are kept",
+            mps_solid::scene::limits::num(r.end_time),
+            written.probes.display(),
+            written.summary.display(),
+            written
+                .energy
+                .as_ref()
+                .map_or(String::new(), |p| format!(" (and {})", p.display())),
+            out.display()
+        );
+        return Ok(ExitCode::FAILURE);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 /// `mps pack` of one scene: the FMU (unless `xml_only`), then the modelDescription.xml written
 /// or checked against DIR/<name>.xml (the canonical form, without generationDateAndTime).
 fn pack_one(
@@ -288,7 +345,7 @@ fn pack_one(
                 .map_err(|e| format!("cannot create the directory {}: {e}", d.display()))?;
         }
         pack_fmu(&sc, lib, &out)?;
-        println!("wrote {}", out.display());
+        println!("wrote {} ({})", out.display(), packed_summary(&out, lib));
     }
     let xml = model_description_xml(&sc);
     if let Some(dir) = write_xml {
@@ -319,4 +376,74 @@ fn pack_one(
         }
     }
     Ok(())
+}
+
+/// Where scripts/build-fmu-lib.sh puts the portable library, below a cargo target directory.
+const PORTABLE_LIB: &str = "x86_64-unknown-linux-gnu/fmu/libmps_solid.so";
+
+/// The newest glibc the portable library may need (scripts/build-fmu-lib.sh links against it).
+const PORTABLE_GLIBC: (u32, u32) = (2, 17);
+
+/// The default library of `mps pack`: the portable build of scripts/build-fmu-lib.sh in the
+/// target directory this program was built in (target/release/mps ->
+/// target/x86_64-unknown-linux-gnu/fmu/libmps_solid.so). Missing: an error that says how to
+/// build it (not the non-portable library with debug line tables beside this program).
+fn portable_library() -> Result<PathBuf, String> {
+    let exe = std::env::current_exe().map_err(|e| {
+        format!("cannot locate this program (to find the library; give --lib): {e}")
+    })?;
+    // target/<profile>/mps or target/<triple>/<profile>/mps.
+    let candidates: Vec<PathBuf> = exe
+        .ancestors()
+        .skip(2)
+        .take(2)
+        .map(|d| d.join(PORTABLE_LIB))
+        .collect();
+    if let Some(found) = candidates.iter().find(|p| p.is_file()) {
+        return Ok(found.clone());
+    }
+    let expected = candidates
+        .first()
+        .map_or_else(|| PORTABLE_LIB.to_string(), |p| p.display().to_string());
+    Err(format!(
+        "the portable FMU library {expected} is not built. Build it with\n    \
+         scripts/build-fmu-lib.sh\nin the source tree ({}): the library without the studies, \
+         stripped and linked against glibc {}.{} by cargo-zigbuild (the script installs it into \
+         .venv, and prints the library's path; several minutes the first time), then pack again. \
+         Or pass --lib PATH to pack another build of these sources (target/release/libmps_solid.so \
+         carries debug line tables, about 45 MB, and needs this machine's glibc)",
+        env!("CARGO_MANIFEST_DIR"),
+        PORTABLE_GLIBC.0,
+        PORTABLE_GLIBC.1
+    ))
+}
+
+/// "9.5 MB; library 2.4 MB, needs glibc >= 2.17" for the line of a packed FMU, with a warning on
+/// stderr when the library is not the portable kind (a newer glibc than 2.17).
+fn packed_summary(fmu: &std::path::Path, lib: &std::path::Path) -> String {
+    let mb = |p: &std::path::Path| {
+        std::fs::metadata(p).map_or("?".to_string(), |m| {
+            format!("{:.1} MB", m.len() as f64 / 1e6)
+        })
+    };
+    let glibc = std::fs::read(lib)
+        .ok()
+        .and_then(|b| mps_solid::fmi::pack::newest_glibc(&b));
+    if let Some((major, minor)) = glibc.filter(|&v| v > PORTABLE_GLIBC) {
+        eprintln!(
+            "warning: the packed library {} needs glibc >= {major}.{minor}: the FMU loads only on \
+             Linux with that glibc or newer (the portable library of scripts/build-fmu-lib.sh \
+             needs {}.{})",
+            lib.display(),
+            PORTABLE_GLIBC.0,
+            PORTABLE_GLIBC.1
+        );
+    }
+    format!(
+        "{}; library {} {}, needs glibc >= {}",
+        mb(fmu),
+        lib.display(),
+        mb(lib),
+        glibc.map_or("?".to_string(), |(a, b)| format!("{a}.{b}"))
+    )
 }

@@ -264,6 +264,13 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
             fine,
         } => {
             use mps_solid::studies::bench;
+            // The output paths are checked before the minutes of work.
+            if let Some(p) = &out {
+                check_output_file(p, "--out")?;
+            }
+            if let Some(p) = &plot {
+                check_output_file(p, "--plot")?;
+            }
             let front = bench::bending_front(quick, fine)?;
             let front_md = bench::bending_markdown(&front, threads());
             if let Some(p) = &plot {
@@ -350,16 +357,18 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
                 ));
             }
             if let Some(dir) = &figure9 {
-                // Refuse bad instants and an unusable directory before any run.
+                // Refuse bad instants, a bad name and an unusable directory before any run.
                 Figure9Capture::new(&figure9_times)?;
-                std::fs::create_dir_all(dir)
-                    .map_err(|e| format!("cannot create the directory {}: {e}", dir.display()))?;
                 if let Some(t) = figure9_times.iter().find(|&&t| t > end + 1e-9) {
                     return Err(format!(
-                        "--figure9-times {t} s is after the end of the run ({} s, --end)",
+                        "--figure9-times {} s is after the end of the run ({} s, --end)",
+                        num(*t),
                         num(end)
                     ));
                 }
+                std::fs::create_dir_all(dir)
+                    .map_err(|e| format!("cannot create the directory {}: {e}", dir.display()))?;
+                mps_solid::studies::case3::check_figure9_name(dir, &figure9_name, &figure9_times)?;
             }
             let scenes: Vec<Scene> = match from_file {
                 Some(s) if figure9.is_some() => [false, true]
@@ -511,6 +520,43 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
             Ok(ExitCode::SUCCESS)
         }
     }
+}
+
+/// Checks before any work that `path` (the value of `flag`) can be written: not a directory,
+/// its directory exists and takes a new file, and an existing file is writable (opened to
+/// append, which changes nothing).
+fn check_output_file(path: &std::path::Path, flag: &str) -> Result<(), String> {
+    let bad = |why: String| format!("{flag} {}: {why}", path.display());
+    if path.is_dir() {
+        return Err(bad("is a directory; give a file name".into()));
+    }
+    if path.file_name().is_none() {
+        return Err(bad("does not name a file".into()));
+    }
+    let dir = match path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        Some(d) => d.to_path_buf(),
+        None => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(bad(format!(
+            "its directory {} does not exist (or is not a directory)",
+            dir.display()
+        )));
+    }
+    let probe = dir.join(format!(".mps-write-check.{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .map_err(|e| bad(format!("cannot create a file in {}: {e}", dir.display())))?;
+    let _ = std::fs::remove_file(&probe);
+    if path.exists() {
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(path)
+            .map_err(|e| bad(format!("cannot be written: {e}")))?;
+    }
+    Ok(())
 }
 
 /// The scene files of scenes/: the paper's cases at the paper's spacing and the bending

@@ -8,6 +8,7 @@ use super::status::{FmiError, FmiResult};
 use super::worker_pool::{scoped_thread, ThreadRunner, WorkerPool};
 use crate::fmi::model_description::guid;
 use crate::fmi::variables::{Quantity, VariableTable};
+use crate::scene::limits::num;
 use crate::scene::Scene;
 use crate::sim::Simulation;
 use serde::{Deserialize, Serialize};
@@ -209,13 +210,16 @@ impl Instance {
         self.require("fmi2SetupExperiment", &[Mode::Instantiated])?;
         if !start.is_finite() {
             return Err(FmiError::Invalid(format!(
-                "startTime = {start} must be finite"
+                "startTime = {} must be finite",
+                num(start)
             )));
         }
         if let Some(s) = stop {
             if !(s.is_finite() && s > start) {
                 return Err(FmiError::Invalid(format!(
-                    "stopTime = {s} must be finite and after startTime = {start}"
+                    "stopTime = {} must be finite and after startTime = {}",
+                    num(s),
+                    num(start)
                 )));
             }
         }
@@ -336,7 +340,7 @@ impl Instance {
             if !e.is_finite() {
                 return Err(FmiError::Solver(format!(
                     "{name} is {e} at t = {}: the state is not valid (see the solver's earlier messages)",
-                    self.time
+                    num(self.time)
                 )));
             }
         }

@@ -53,20 +53,24 @@ impl Instance {
         self.require("fmi2DoStep", &[Mode::StepComplete])?;
         if !(h.is_finite() && h > 0.0) {
             return Err(FmiError::Invalid(format!(
-                "communicationStepSize = {h} must be positive and finite"
+                "communicationStepSize = {} must be positive and finite",
+                num(h)
             )));
         }
         if !(t.is_finite() && (t - self.time).abs() <= time_tol(t)) {
             return Err(FmiError::Invalid(format!(
-                "currentCommunicationPoint = {t} but the last step ended at {}",
-                self.time
+                "currentCommunicationPoint = {} but the last step ended at {}",
+                num(t),
+                num(self.time)
             )));
         }
         let t_end = t + h;
         if let Some(stop) = self.stop_time {
             if t_end > stop + time_tol(stop) {
                 return Err(FmiError::Invalid(format!(
-                    "the step would end at {t_end}, after stopTime = {stop}"
+                    "the step would end at {}, after stopTime = {}",
+                    num(t_end),
+                    num(stop)
                 )));
             }
         }
@@ -88,7 +92,9 @@ impl Instance {
         let res = match res {
             Ok(n) => self.refresh_outputs().map(|_| n),
             Err(e) => Err(FmiError::Solver(format!(
-                "step from t = {t} to {t_end} failed: {e}"
+                "step from t = {} to {} failed: {e}",
+                num(t),
+                num(t_end)
             ))),
         };
         self.inputs.clear_rates();
@@ -96,8 +102,11 @@ impl Instance {
             Ok(n) => {
                 self.time = t_end;
                 self.last_successful_time = t_end;
-                self.log
-                    .trace(&format!("doStep t = {t}, h = {h}: {n} solver steps"));
+                self.log.trace(&format!(
+                    "doStep t = {}, h = {}: {n} solver steps",
+                    num(t),
+                    num(h)
+                ));
                 Ok(())
             }
             Err(e) => {

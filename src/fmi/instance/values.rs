@@ -131,8 +131,9 @@ impl Instance {
             let v = self.settable(r, VarType::Real)?;
             if !x.is_finite() {
                 return Err(FmiError::Invalid(format!(
-                    "'{}' (value reference {r}) cannot be set to {x}: values must be finite (nothing was set)",
-                    v.name
+                    "'{}' (value reference {r}) cannot be set to {}: values must be finite (nothing was set)",
+                    v.name,
+                    num(x)
                 )));
             }
             if v.causality == Causality::Parameter {
@@ -156,10 +157,11 @@ impl Instance {
                     {
                         self.gravity_ignored_warned = true;
                         self.log.warn(format!(
-                            "fmi2SetReal: gravity_{} set to {x} while gravity_source = 1 (the \
+                            "fmi2SetReal: gravity_{} set to {} while gravity_source = 1 (the \
                              scene's gravity law): the gravity inputs are ignored; set the \
                              parameter gravity_source = 2 to drive gravity from the inputs",
-                            ["x", "y", "z"][k]
+                            ["x", "y", "z"][k],
+                            num(x)
                         ));
                     }
                     self.inputs.gravity[k] = x;
@@ -252,8 +254,9 @@ impl Instance {
             }
             if !x.is_finite() {
                 return Err(FmiError::Invalid(format!(
-                    "the derivative of '{}' cannot be {x}: values must be finite (nothing was set)",
-                    v.name
+                    "the derivative of '{}' cannot be {}: values must be finite (nothing was set)",
+                    v.name,
+                    num(x)
                 )));
             }
         }

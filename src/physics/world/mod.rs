@@ -66,7 +66,7 @@ pub enum SimError {
     },
     #[error("invalid input: {0}")]
     Invalid(String),
-    #[error("advancing to t = {t_end:e} s would take {steps} solver steps of dt = {dt:.4e} s, more than solver.max_steps = {limit}; nothing was done (use a shorter advance, a larger particle spacing or a softer/denser material, or raise solver.max_steps)")]
+    #[error("{}", work_refusal(*t_end, *steps, *dt, *particles, *limit, *max_particle_steps, *wall_estimate_s))]
     TooMuchWork {
         /// Time the advance was asked to reach (s).
         t_end: f64,
@@ -76,9 +76,91 @@ pub enum SimError {
         limit: u64,
         /// The solver step (s).
         dt: f64,
+        /// Particles of the scene.
+        particles: usize,
+        /// solver.max_particle_steps (particle-steps: particles x solver steps).
+        max_particle_steps: u64,
+        /// The advance's estimated wall time on two cores (s; `Simulation::estimate_wall_time`).
+        wall_estimate_s: f64,
+    },
+    #[error("stopped on request at t = {time:e} s (step {step})")]
+    Interrupted {
+        /// Time reached (s): the state is that of a complete step.
+        time: f64,
+        step: u64,
     },
     #[error("out of memory: {0}")]
     OutOfMemory(String),
+}
+
+/// The message of [`SimError::TooMuchWork`]: which limit the advance exceeds, its estimated
+/// wall time and how to get under the limit.
+fn work_refusal(
+    t_end: f64,
+    steps: u64,
+    dt: f64,
+    particles: usize,
+    limit: u64,
+    max_particle_steps: u64,
+    wall_estimate_s: f64,
+) -> String {
+    let work = steps as f64 * particles as f64;
+    let (over, raise) = if steps > limit {
+        (
+            format!("more than solver.max_steps = {limit}"),
+            "solver.max_steps",
+        )
+    } else {
+        (
+            format!(
+                "{} particle-steps for {particles} particles, more than solver.max_particle_steps = {:e}",
+                sci(work),
+                max_particle_steps as f64
+            ),
+            "solver.max_particle_steps",
+        )
+    };
+    format!(
+        "advancing to t = {t_end:e} s would take {steps} solver steps of dt = {dt:.4e} s, {over} \
+         (about {} of wall time on two cores); nothing was done (use a shorter advance, a larger \
+         particle spacing or a softer/denser material, or raise {raise})",
+        duration_text(wall_estimate_s)
+    )
+}
+
+/// A large count in short scientific notation: 5.6e9.
+fn sci(v: f64) -> String {
+    let s = format!("{v:.2e}");
+    // 5.60e9 -> 5.6e9, 1.00e10 -> 1e10.
+    match s.split_once('e') {
+        Some((m, e)) => format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.')),
+        None => s,
+    }
+}
+
+/// A wall time for a person: "40 s", "12 min", "3.5 h", "9 days", "2e3 years".
+pub fn duration_text(s: f64) -> String {
+    if !s.is_finite() {
+        return "an unbounded time".into();
+    }
+    let (v, unit) = if s < 90.0 {
+        (s, "s")
+    } else if s < 5400.0 {
+        (s / 60.0, "min")
+    } else if s < 2.0 * 86400.0 {
+        (s / 3600.0, "h")
+    } else if s < 730.0 * 86400.0 {
+        (s / 86400.0, "days")
+    } else {
+        (s / (365.25 * 86400.0), "years")
+    };
+    if v >= 1e4 {
+        format!("{} {unit}", sci(v))
+    } else if v >= 10.0 {
+        format!("{v:.0} {unit}")
+    } else {
+        format!("{v:.1} {unit}")
+    }
 }
 
 /// A body to create: its material, particle positions and initial velocity.

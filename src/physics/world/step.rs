@@ -290,6 +290,17 @@ where
     /// Group displacements follow their motions (see [`World::set_group_motion`]). Returns the
     /// number of steps taken.
     pub fn advance_to(&mut self, t_end: f64) -> Result<u64, SimError> {
+        self.advance_to_with(t_end, |_| true)
+    }
+
+    /// [`World::advance_to`] calling `on_step(time)` after every step (progress reports; the
+    /// steps are the same). When it returns false the advance stops there, after a complete
+    /// step, with `SimError::Interrupted`.
+    pub fn advance_to_with(
+        &mut self,
+        t_end: f64,
+        mut on_step: impl FnMut(f64) -> bool,
+    ) -> Result<u64, SimError> {
         if !t_end.is_finite() {
             return Err(SimError::Invalid(format!(
                 "end time must be finite, got {t_end}"
@@ -310,6 +321,12 @@ where
                 let t_new = if k == n { t_end } else { t0 + k as f64 * dt };
                 self.step_to(t_new - self.time, t_new)?;
                 taken += 1;
+                if !on_step(self.time) && self.time < t_end {
+                    return Err(SimError::Interrupted {
+                        time: self.time,
+                        step: self.steps,
+                    });
+                }
                 // The stable step was measured again and is shorter: the rest of the advance
                 // in equal steps of the new length.
                 if k < n && self.max_dt() < max_dt {

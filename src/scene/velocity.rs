@@ -255,6 +255,7 @@ fn finite(field: &str, v: f64) -> Result<(), SceneError> {
 
 /// A velocity (m/s) within [`limits::SPEED`].
 fn speed(field: &str, v: f64) -> Result<(), SceneError> {
+    finite(field, v)?;
     limits::SPEED.check(v).map_err(|m| err(field, m))
 }
 

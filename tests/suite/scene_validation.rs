@@ -407,13 +407,14 @@ fn each_bad_field_is_named() {
             "group 'clamp': no member is the mirror image of a free particle",
         ),
         (
-            "parts that overflow when summed",
+            // (Each part is now within limits::SPEED, so no sum of parts overflows.)
+            "parts that would overflow when summed",
             Box::new(|v| {
                 v["bodies"][0]["velocity"] = serde_json::json!({"linear": [0, 0, 1.7e308],
                     "profiles": [{"table": {"axis": "x", "component": "z",
                                             "points": [[0, 1.7e308]]}}]})
             }),
-            "bodies[0] ('beam').velocity: the velocity at the particle at",
+            "bodies[0] ('beam').velocity.linear[2]: must be in [-100000, 100000] m/s, got 1.7e308",
         ),
         (
             "unknown material law",

@@ -147,8 +147,10 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             if out.is_some() && scenes.len() > 1 {
                 return Err("--out names one file: with several scenes use --out-dir".into());
             }
+            // --xml-only packs no library: none is looked for.
             let lib = match lib {
                 Some(l) => l,
+                None if xml_only => PathBuf::new(),
                 None => portable_library()?,
             };
             let mut failed = false;

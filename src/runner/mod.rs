@@ -3,6 +3,7 @@
 pub mod analysis;
 
 use self::analysis::{dominant_frequency, peak};
+use crate::physics::world::{SetupObserver, SetupStage};
 use crate::scene::limits::num;
 use crate::scene::{axis_index, Scene, SceneWarning};
 use crate::sim::Simulation;
@@ -71,6 +72,26 @@ pub enum RunEvent<'a> {
     Warning(&'a SceneWarning),
     /// An output sample at this time (s) was taken.
     Sample(f64),
+    /// A stage of the model's set-up ended after `seconds` (wall clock), as it happens.
+    Setup {
+        stage: SetupStage,
+        seconds: f64,
+        detail: &'a str,
+    },
+}
+
+/// Relays the set-up's stages to a run's `on_event` (the set-up runs on the calling thread).
+struct SetupRelay<'a, F>(std::cell::RefCell<&'a mut F>);
+
+impl<F: FnMut(RunEvent)> SetupObserver for SetupRelay<'_, F> {
+    fn stage_done(&self, stage: SetupStage, seconds: f64, detail: &str) {
+        let mut f = self.0.borrow_mut();
+        (*f)(RunEvent::Setup {
+            stage,
+            seconds,
+            detail,
+        });
+    }
 }
 
 /// Result of a run; `error` is set when the solver stopped early (the series keeps what was
@@ -215,7 +236,9 @@ pub fn run_scene_with(
     opts: RunOptions,
     mut on_event: impl FnMut(RunEvent),
 ) -> Result<RunResult, String> {
-    let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
+    let mut sim =
+        Simulation::new_observed(scene, &SetupRelay(std::cell::RefCell::new(&mut on_event)))
+            .map_err(|e| e.to_string())?;
     check_free_particles(&sim)?;
     sim.check_work(scene.end_time).map_err(|e| e.to_string())?;
     // Reported once the run is sure to start (a refused scene gets its error alone).

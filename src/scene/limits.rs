@@ -138,8 +138,20 @@ pub const OUTPUT_INTERVAL: Range = Range {
 /// memory and written as CSV (1e6 samples of 10 probes is about 240 MB).
 pub const MAX_OUTPUTS: f64 = 1e6;
 
-/// Defaults of `solver.max_steps` and `solver.max_particles` (kept with the solver options).
-pub use crate::physics::params::{DEFAULT_MAX_PARTICLES, DEFAULT_MAX_STEPS};
+/// Wall-clock bound of the model's set-up (s). From a second (a test's quick refusal) to a
+/// week.
+pub const MAX_SETUP_SECONDS: Range = Range {
+    field: "solver.max_setup_seconds",
+    min: 1.0,
+    max: 604_800.0,
+    unit: "s",
+};
+
+/// Defaults of `solver.max_steps`, `solver.max_particles` and `solver.max_setup_seconds` (kept
+/// with the solver options).
+pub use crate::physics::params::{
+    DEFAULT_MAX_PARTICLES, DEFAULT_MAX_SETUP_SECONDS, DEFAULT_MAX_STEPS,
+};
 
 /// A number for a message: the shortest text that reads back to the same f64, in plain notation
 /// for 1e-4 <= |v| < 1e7 and in scientific notation otherwise (never hundreds of digits).

@@ -284,6 +284,7 @@ impl Scene {
         if o.max_steps == 0 {
             return Err(err("solver.max_steps", "must be >= 1, got 0"));
         }
+        ranged("", &limits::MAX_SETUP_SECONDS, o.max_setup_seconds)?;
         let c = &o.contact;
         if !(c.surface_threshold.is_finite() && c.surface_threshold > 0.0) {
             return Err(err(

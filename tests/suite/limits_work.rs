@@ -99,3 +99,87 @@ fn a_huge_step_is_refused_and_the_limit_is_configurable() {
     ));
     assert_eq!(sim.advance_to(0.01).unwrap(), n);
 }
+
+/// small3d at a quarter of its spacing: 19,456 particles, whose set-up takes about 15 s on
+/// 2 cores (most of it the first measurement of the stable step).
+fn slow_setup_scene() -> Scene {
+    let mut s = Scene::load(
+        &std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/small3d.json"),
+    )
+    .unwrap();
+    s.particle_spacing = 0.00625;
+    s
+}
+
+/// Records the set-up's stages as they end, with the time they were told.
+#[derive(Default)]
+struct Stages(std::cell::RefCell<Vec<(&'static str, f64, String, Instant)>>);
+
+impl mps_solid::physics::world::SetupObserver for Stages {
+    fn stage_done(&self, stage: mps_solid::physics::world::SetupStage, seconds: f64, detail: &str) {
+        self.0
+            .borrow_mut()
+            .push((stage.name(), seconds, detail.to_string(), Instant::now()));
+    }
+}
+
+#[test]
+fn set_up_stages_are_told_as_they_end() {
+    // Issue 27.7: the set-up was silent until it returned. Each stage is told when it ends,
+    // with its time; the stages' times add up to the set-up's wall time (the rest is
+    // bookkeeping between them).
+    let s = small2d();
+    let stages = Stages::default();
+    let t0 = Instant::now();
+    Simulation::new_observed(&s, &stages).unwrap();
+    let total = t0.elapsed().as_secs_f64();
+    let v = stages.0.borrow();
+    let names: Vec<&str> = v.iter().map(|x| x.0).collect();
+    assert_eq!(
+        names,
+        [
+            "particles",
+            "bonds",
+            "operator fits",
+            "closure",
+            "stable step",
+            "initial forces"
+        ]
+    );
+    // Told as they happen: the stable step ends well before the set-up returns... and each
+    // stage was told after the previous one.
+    assert!(v.windows(2).all(|w| w[0].3 <= w[1].3));
+    let sum: f64 = v.iter().map(|x| x.1).sum();
+    assert!(
+        sum <= total * 1.001 && sum >= 0.5 * total,
+        "{sum} of {total} s"
+    );
+    assert!(v[1].2.contains("bonds of 280 particles"), "{}", v[1].2);
+}
+
+#[test]
+fn a_set_up_longer_than_its_bound_is_refused_early_with_its_estimate() {
+    // Issue 27.7: a long set-up had no bound. solver.max_setup_seconds bounds it: estimated
+    // once the bonds are found (the first few percent of the work) and refused then, with the
+    // estimate in the message.
+    let mut s = slow_setup_scene();
+    s.solver.max_setup_seconds = 1.0;
+    let stages = Stages::default();
+    let e = Simulation::new_observed(&s, &stages)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("solver.max_setup_seconds = 1 s")
+            && e.contains("the set-up would take about")
+            && e.contains("bonds found in"),
+        "{e}"
+    );
+    // Refused once the bonds were found, before the expensive stages.
+    let names: Vec<&str> = stages.0.borrow().iter().map(|x| x.0).collect();
+    assert_eq!(names, ["particles", "bonds"], "{e}");
+    // Out of range: refused by the validation, naming the field.
+    s.solver.max_setup_seconds = 0.0;
+    let e = Simulation::new(&s).err().unwrap().to_string();
+    assert!(e.contains("solver.max_setup_seconds"), "{e}");
+}

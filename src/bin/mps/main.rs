@@ -136,6 +136,18 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             let r = run_scene_with(&sc, RunOptions { energy }, |e| match e {
                 RunEvent::Warning(w) => pb.suspend(|| eprintln!("warning: {w}")),
                 RunEvent::Sample(t) => pb.set_position((t * 1e6) as u64),
+                RunEvent::Setup {
+                    stage,
+                    seconds,
+                    detail,
+                } => pb.suspend(|| {
+                    let detail = if detail.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({detail})")
+                    };
+                    eprintln!("set-up: {} took {seconds:.2} s{detail}", stage.name())
+                }),
             });
             pb.finish_and_clear();
             let r = r.inspect_err(|_| {

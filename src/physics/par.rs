@@ -45,6 +45,10 @@ pub trait Producer: Send + Sized {
     type Item;
     type IntoIter: Iterator<Item = Self::Item>;
     fn len(&self) -> usize;
+    /// Whether there are no elements.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
     /// The first `mid` elements and the rest (mid <= len).
     fn split_at(self, mid: usize) -> (Self, Self);
     fn into_iter(self) -> Self::IntoIter;
@@ -190,12 +194,28 @@ fn run_on<P: Producer, F: Fn(P::Item) + Sync>(e: &dyn Executor, p: P, f: &F) {
         .into_iter()
         .map(|p| Mutex::new(Some(p)))
         .collect();
+    // A loop inside a task runs serially on the task's thread: the executor is busy with this
+    // loop (its `run` is not re-entrant), and a worker thread must not fall back to rayon's
+    // global pool, whose threads and crossbeam-epoch globals would outlive an FMU instance.
+    let serial: BoxedExecutor = Box::new(Serial);
     e.run(parts.len(), &|k| {
         let part = parts[k].lock().unwrap_or_else(|e| e.into_inner()).take();
         if let Some(part) = part {
-            part.into_iter().for_each(f);
+            CURRENT.set(&serial, || part.into_iter().for_each(f));
         }
     });
+}
+
+/// The executor of loops nested in a task of another loop: the task's own thread.
+struct Serial;
+
+impl Executor for Serial {
+    fn threads(&self) -> usize {
+        1
+    }
+    fn run(&self, tasks: usize, task: &(dyn Fn(usize) + Sync)) {
+        (0..tasks).for_each(task)
+    }
 }
 
 /// Without an installed executor: rayon's current pool, split in halves with `rayon::join`.
@@ -279,8 +299,41 @@ mod tests {
     }
 
     #[test]
+    fn a_loop_nested_in_a_task_runs_serially_on_the_tasks_thread() {
+        // The sbp closure solves its axes side by side, each with loops of its own: those must
+        // not re-enter the busy executor, nor fall back to rayon's global pool on a worker.
+        /// Runs the tasks on the calling thread, counting the loops it runs.
+        struct Counting(std::sync::Arc<AtomicUsize>);
+        impl Executor for Counting {
+            fn threads(&self) -> usize {
+                3
+            }
+            fn run(&self, tasks: usize, task: &(dyn Fn(usize) + Sync)) {
+                self.0.fetch_add(1, Ordering::Relaxed);
+                (0..tasks).for_each(task)
+            }
+        }
+        let runs = std::sync::Arc::new(AtomicUsize::new(0));
+        let e: BoxedExecutor = Box::new(Counting(runs.clone()));
+        let rows: Vec<usize> = (0..5).collect();
+        let sums = install(&e, || {
+            map(&rows, |&r| {
+                let inner: Vec<usize> = (0..100).map(|k| k * r).collect();
+                map(&inner, |x| x + 1).iter().sum::<usize>()
+            })
+        });
+        let want: Vec<usize> = rows.iter().map(|r| 4950 * r + 100).collect();
+        assert_eq!(sums, want);
+        assert_eq!(
+            runs.load(Ordering::Relaxed),
+            1,
+            "the executor ran only the outer loop"
+        );
+    }
+
+    #[test]
     fn split_parts_are_nearly_equal() {
-        let mut v = vec![0u8; 10];
+        let mut v = [0u8; 10];
         let parts = split(ParMut(&mut v[..]), 4);
         let lens: Vec<usize> = parts.iter().map(|p| p.len()).collect();
         assert_eq!(lens, vec![2, 2, 3, 3]);

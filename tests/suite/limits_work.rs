@@ -183,3 +183,66 @@ fn a_set_up_longer_than_its_bound_is_refused_early_with_its_estimate() {
     let e = Simulation::new(&s).err().unwrap().to_string();
     assert!(e.contains("solver.max_setup_seconds"), "{e}");
 }
+
+/// Runs `mps run SCENE --out DIR` on `scene` (written to a scratch file); its exit status
+/// success and stderr.
+fn mps_run(scene: &Scene, name: &str) -> (bool, String) {
+    let d = std::env::temp_dir().join(format!("mps-setup-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join("scene.json");
+    std::fs::write(&p, scene.to_json()).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mps"))
+        .args(["run", p.to_str().unwrap(), "--out"])
+        .arg(d.join("out"))
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&d).ok();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+#[test]
+fn mps_run_refuses_a_set_up_beyond_its_bound_with_the_estimate() {
+    // Issue 27.7 in the CLI: the refusal is an error naming the field, with the estimate,
+    // given once the bonds are found (a second or two here, not the 15 s of the whole set-up).
+    let mut s = slow_setup_scene();
+    s.solver.max_setup_seconds = 1.0;
+    s.end_time = 0.001;
+    s.output_interval = 0.001;
+    let (ok, err) = quick(12.0, || mps_run(&s, "bound"));
+    assert!(!ok, "{err}");
+    assert!(
+        err.starts_with("error: ")
+            && err.contains("solver.max_setup_seconds")
+            && err.contains("the set-up would take about"),
+        "{err}"
+    );
+    // A quick set-up (small2d: milliseconds) prints no stage lines.
+    let (ok, err) = mps_run(&small2d(), "quick");
+    assert!(ok && !err.contains("set-up:"), "{err}");
+}
+
+#[test]
+#[ignore = "slow (20 s on a loaded 2-core machine): the full test command runs it"]
+fn mps_run_reports_a_long_set_up_on_stderr() {
+    // Issue 27.7 in the CLI: a set-up longer than a second shows its stages on stderr.
+    let mut s = slow_setup_scene();
+    s.end_time = 1e-5;
+    s.output_interval = 1e-5;
+    let (ok, err) = mps_run(&s, "long");
+    assert!(ok, "{err}");
+    for stage in [
+        "particles",
+        "bonds",
+        "operator fits",
+        "closure",
+        "stable step",
+    ] {
+        assert!(
+            err.contains(&format!("set-up: {stage} took")),
+            "{stage}:\n{err}"
+        );
+    }
+}

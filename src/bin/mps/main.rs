@@ -108,6 +108,36 @@ fn main() -> ExitCode {
     }
 }
 
+/// Set-up time after which `mps run` reports the set-up's stages on stderr (s): a quick set-up
+/// stays silent, a long one shows its stages as they end (the ones before, at once).
+const SETUP_REPORT_AFTER: f64 = 1.0;
+
+/// The set-up's stage lines of a run: held until the set-up has taken [`SETUP_REPORT_AFTER`],
+/// then written to stderr as they come.
+#[derive(Default)]
+struct SetupLines {
+    held: Vec<String>,
+    total: f64,
+}
+
+impl SetupLines {
+    fn stage(&mut self, name: &str, seconds: f64, detail: &str) {
+        let detail = if detail.is_empty() {
+            String::new()
+        } else {
+            format!(" ({detail})")
+        };
+        self.held
+            .push(format!("set-up: {name} took {seconds:.2} s{detail}"));
+        self.total += seconds;
+        if self.total >= SETUP_REPORT_AFTER {
+            for l in self.held.drain(..) {
+                eprintln!("{l}");
+            }
+        }
+    }
+}
+
 fn run(cli: Cli) -> Result<ExitCode, String> {
     match cli.cmd {
         Cmd::Run {
@@ -133,6 +163,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 None
             };
             let pb = progress(sc.end_time, &sc.name);
+            let mut setup = SetupLines::default();
             let r = run_scene_with(&sc, RunOptions { energy }, |e| match e {
                 RunEvent::Warning(w) => pb.suspend(|| eprintln!("warning: {w}")),
                 RunEvent::Sample(t) => pb.set_position((t * 1e6) as u64),
@@ -140,14 +171,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                     stage,
                     seconds,
                     detail,
-                } => pb.suspend(|| {
-                    let detail = if detail.is_empty() {
-                        String::new()
-                    } else {
-                        format!(" ({detail})")
-                    };
-                    eprintln!("set-up: {} took {seconds:.2} s{detail}", stage.name())
-                }),
+                } => pb.suspend(|| setup.stage(stage.name(), seconds, detail)),
             });
             pb.finish_and_clear();
             let r = r.inspect_err(|_| {

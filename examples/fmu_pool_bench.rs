@@ -125,7 +125,12 @@ fn main() {
         .map(PathBuf::from)
         .unwrap_or_else(|| root.join("target/release/libmps_solid.so"));
     let mut own = CInstance::new(&lib, &guid(&scene), &uri);
-    let mut before = old.map(|(l, g)| CInstance::new(&PathBuf::from(l), g, &uri));
+    // The other build reads the scene file as written (it may not know newer fields).
+    let old_dir = dir.join("old");
+    std::fs::create_dir_all(&old_dir).unwrap();
+    std::fs::copy(&path, old_dir.join("scene.json")).unwrap();
+    let old_uri = format!("file://{}", old_dir.display());
+    let mut before = old.map(|(l, g)| CInstance::new(&PathBuf::from(l), g, &old_uri));
     let mut rayon = Instance::instantiate(
         "bench",
         true,

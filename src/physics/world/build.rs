@@ -315,7 +315,11 @@ where
             let closed = closure.iter().filter(|r| r.is_ok()).count();
             clock.done(
                 SetupStage::Closure,
-                &format!("{closed} of {} bodies closed", closure.len()),
+                &format!(
+                    "{closed} of {} {} closed",
+                    closure.len(),
+                    if closure.len() == 1 { "body" } else { "bodies" }
+                ),
             )?;
         }
         let mut load_of = vec![u32::MAX; n];
@@ -423,12 +427,16 @@ where
     }
 }
 
-/// Stage costs in bonds-stage seconds (see [`stage_costs`]); measured with `mps run` on
-/// 2 cores (BENCHMARKS.md, "Set-up stages"), rounded up.
-const SECOND_ORDER_FITS: f64 = 20.0;
+/// Stage costs in bonds-stage seconds (see [`stage_costs`]): rough, for an estimate that
+/// refuses a set-up hours long, not one a few tens of percent over its bound. Measured with
+/// `mps run` on a loaded 2-core machine (BENCHMARKS.md, "Set-up stages": small3d at
+/// 0.00625 m, 18,944 particles: fits 5.7, stable step and initial forces 49 bonds-stage
+/// seconds), rounded up; the closure's cost is a guess (that body has a rigid grip, which
+/// keeps the plain fits: no closure).
+const SECOND_ORDER_FITS: f64 = 10.0;
 const SECOND_ORDER_CLOSURE: f64 = 60.0;
 const FIRST_ORDER_FITS: f64 = 5.0;
-const STABLE_STEP_COST: f64 = 20.0;
+const STABLE_STEP_COST: f64 = 50.0;
 
 /// The cost of the stages after the bonds, in bonds-stage seconds, for the estimate of the
 /// set-up's duration ([`SetupClock::estimate`]).

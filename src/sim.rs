@@ -2,7 +2,7 @@
 //! and the FMI layer use. Values cross this boundary as 3-arrays (z = 0 in 2D).
 use crate::physics::boundary::{GravityLaw, GroupMotion};
 use crate::physics::dim::{from3, to3};
-use crate::physics::world::WorldState;
+use crate::physics::world::{SetupObserver, Unobserved, WorldState};
 use crate::physics::{ElasticModel, SimError};
 use crate::scene::limits::num;
 use crate::scene::{Model, Scene, SceneError, SceneWarning};
@@ -79,10 +79,16 @@ impl Simulation {
 
     /// Validates the scene and builds its world.
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        Self::new_observed(scene, &Unobserved)
+    }
+
+    /// [`Simulation::new`] with the set-up's stages told to `observer` as they end; the
+    /// observer may stop the set-up at a stage boundary.
+    pub fn new_observed(scene: &Scene, observer: &dyn SetupObserver) -> Result<Self, SceneError> {
         scene.validate()?;
         let sim = match scene.dimension {
-            2 => Simulation::D2(Box::new(Model::<2>::build(scene)?)),
-            _ => Simulation::D3(Box::new(Model::<3>::build(scene)?)),
+            2 => Simulation::D2(Box::new(Model::<2>::build_observed(scene, observer)?)),
+            _ => Simulation::D3(Box::new(Model::<3>::build_observed(scene, observer)?)),
         };
         let crit = sim.critical_dt();
         if let Some(dt) = scene.solver.dt {

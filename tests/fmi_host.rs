@@ -1098,7 +1098,7 @@ fn status_queries_and_unsupported_functions() {
             (a.fmi2GetBooleanStatus)(i.c, 0, &mut n),
             "only fmi2Terminated",
         );
-        i.expect_err((a.fmi2CancelStep)(i.c), "not supported");
+        i.expect_err((a.fmi2CancelStep)(i.c), "nothing to cancel");
         i.expect_err(
             (a.fmi2GetDirectionalDerivative)(i.c, &vr, 1, &vr, 1, &x, &mut x),
             "not supported",
@@ -1874,4 +1874,105 @@ fn fmu_state_of_a_scene_with_a_velocity_field_roundtrips() {
         assert_eq!((a.fmi2FreeFMUstate)(j.c, &mut st2), OK);
         assert_eq!(run(&j), first, "deserialised run differs");
     }
+}
+
+/// A component pointer moved to another thread (the host's own business there).
+struct SendComp(Comp);
+unsafe impl Send for SendComp {}
+
+#[test]
+fn a_long_set_up_is_logged_as_it_happens_and_can_be_cancelled() {
+    // Issue 27.7: fmi2EnterInitializationMode of a big scene logged nothing until it returned,
+    // and fmi2CancelStep from another thread blocked until then. Now each stage is logged as it
+    // ends, and fmi2CancelStep asks the set-up to stop at its next stage boundary, returning at
+    // once; the set-up's call then fails, the instance is unchanged and can set up again.
+    let _g = shared();
+    // small3d at half its spacing: 2,368 particles, a set-up of about 2 s on 2 cores (the
+    // stable step's measurement is most of it).
+    let mut scene = Scene::load(&root().join("tests/data/small3d.json")).unwrap();
+    scene.particle_spacing = 0.0125;
+    let u = Unpacked::from_scene(scene, "cancel");
+    let i = Inst::new(&u);
+    let ev = cstr("logEvents");
+    unsafe {
+        assert_eq!(
+            (api().fmi2SetDebugLogging)(i.c, 1, 1, [ev.as_ptr()].as_ptr()),
+            OK
+        );
+        assert_eq!((api().fmi2SetupExperiment)(i.c, 0, 0.0, 0.0, 0, 0.0), OK);
+    }
+    let c = SendComp(i.c);
+    let started = std::time::Instant::now();
+    let setup = std::thread::spawn(move || {
+        let c = c;
+        let s = unsafe { (api().fmi2EnterInitializationMode)(c.0) };
+        (s, std::time::Instant::now())
+    });
+    // The bonds stage is logged while the set-up runs.
+    let seen = loop {
+        let log = i.log.all();
+        if log.contains("set-up: bonds took") {
+            break std::time::Instant::now();
+        }
+        assert!(
+            started.elapsed().as_secs() < 120 && !setup.is_finished(),
+            "no stage was logged while the set-up ran:\n{log}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    let t = std::time::Instant::now();
+    let cancelled = unsafe { (api().fmi2CancelStep)(i.c) };
+    let cancel_took = t.elapsed();
+    let (status, ended) = setup.join().unwrap();
+    assert_eq!(cancelled, OK, "{}", i.log.all());
+    assert!(
+        cancel_took.as_secs_f64() < 0.5,
+        "fmi2CancelStep blocked for {cancel_took:?}"
+    );
+    i.expect_err(status, "fmi2CancelStep was called");
+    assert!(ended > seen);
+    println!(
+        "set-up stopped {:.2} s after the cancel (bonds logged {:.2} s after the start)",
+        (ended - t).as_secs_f64(),
+        (seen - started).as_secs_f64()
+    );
+    // Nothing is left half-built: with no call running, fmi2CancelStep has nothing to stop,
+    // and the instance can still be initialised (now without being stopped).
+    i.expect_err(unsafe { (api().fmi2CancelStep)(i.c) }, "nothing to cancel");
+    unsafe {
+        assert_eq!(
+            (api().fmi2EnterInitializationMode)(i.c),
+            OK,
+            "{}",
+            i.log.all()
+        );
+    }
+    let log = i.log.all();
+    for stage in ["bonds", "operator fits", "closure", "stable step"] {
+        assert!(
+            log.contains(&format!("set-up: {stage} took")),
+            "{stage}:\n{log}"
+        );
+    }
+}
+
+#[test]
+fn results_do_not_depend_on_the_fmu_thread_count() {
+    // Issue 27.5: the instance's own threads (not rayon) run the gather-form loops; the
+    // outputs are bitwise the same with 1, 2 and 3 threads (MPS_FMI_THREADS, read at
+    // fmi2Instantiate; the write lock keeps every other test of this process out meanwhile).
+    let _g = PROCESS.write().unwrap_or_else(|e| e.into_inner());
+    let _ = (api(), logger_ptr());
+    let u = Unpacked::new("small3d.json", "thread-count");
+    let runs: Vec<Vec<u64>> = [1, 2, 3]
+        .iter()
+        .map(|n| {
+            std::env::set_var("MPS_FMI_THREADS", n.to_string());
+            let r = run_small3d(&u);
+            std::env::remove_var("MPS_FMI_THREADS");
+            r
+        })
+        .collect();
+    assert_eq!(runs[0], runs[1], "1 and 2 threads");
+    assert_eq!(runs[0], runs[2], "1 and 3 threads");
 }

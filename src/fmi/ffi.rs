@@ -9,11 +9,12 @@
 #![allow(non_camel_case_types, non_snake_case, clippy::missing_safety_doc)]
 
 use super::instance::{
-    panic_message, FmiError, FmiResult, FmuState, Instance, Job, Logger, Status,
+    instance_threads, panic_message, FmiError, FmiResult, FmuState, Instance, Logger, SetupControl,
+    Status, WorkerPool,
 };
 use std::ffi::{c_char, c_int, c_uint, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 pub type fmi2Component = *mut c_void;
@@ -122,6 +123,25 @@ struct Component {
     inst: Mutex<Instance>,
     /// Set after a panic: the instance may be inconsistent.
     fatal: AtomicBool,
+    /// The thread running a call on the instance (0: none): a call from that same thread while
+    /// it runs (the host's logger calling back during a set-up message) is refused instead of
+    /// deadlocking on the lock.
+    owner: AtomicUsize,
+    /// The instance's running set-up, which fmi2CancelStep may stop without the lock.
+    setup: Arc<SetupControl>,
+}
+
+/// An id of the calling thread (never 0).
+fn thread_id() -> usize {
+    // SAFETY: pthread_self has no preconditions; glibc returns the thread's descriptor address.
+    #[cfg(unix)]
+    let id = unsafe { libc::pthread_self() } as usize;
+    #[cfg(not(unix))]
+    let id = {
+        thread_local!(static MARK: u8 = const { 0 });
+        MARK.with(|m| m as *const u8 as usize)
+    };
+    id.max(1)
 }
 
 /// Runs f on the instance behind c: the panic boundary and the status mapping of every call
@@ -152,11 +172,27 @@ fn guard(
         );
         return fmi2Status::fmi2Error;
     }
+    let me = thread_id();
+    if comp.owner.load(Ordering::SeqCst) == me {
+        comp.logger.log(
+            Status::Error,
+            "logStatusError",
+            &format!(
+                "{function}: called from within a call on the same instance (the logger's \
+                 callback during a set-up message?): call it after that call has returned"
+            ),
+        );
+        return fmi2Status::fmi2Error;
+    }
     // The instance's messages are handed to the host's logger only after the lock is released,
     // so that a logger may call back into the instance (fmi2GetReal while an error is logged).
     let r = catch_unwind(AssertUnwindSafe(|| {
         let mut inst = comp.inst.lock().unwrap_or_else(|e| e.into_inner());
-        let status = match f(&mut inst) {
+        comp.owner.store(me, Ordering::SeqCst);
+        let result = catch_unwind(AssertUnwindSafe(|| f(&mut inst)));
+        comp.owner.store(0, Ordering::SeqCst);
+        let result = result.unwrap_or_else(|p| std::panic::resume_unwind(p));
+        let status = match result {
             Ok(()) => Status::Ok,
             Err(e) => {
                 inst.report(function, &e);
@@ -314,14 +350,14 @@ pub unsafe extern "C" fn fmi2Instantiate(
         };
         let location = string(fmuResourceLocation);
         const CO_SIMULATION: c_int = 1;
-        match Instance::instantiate_with_runner(
+        match Instance::instantiate_with_pool(
             &name,
             fmuType == CO_SIMULATION,
             &guid,
             location.as_deref(),
             logger.clone(),
             loggingOn != 0,
-            start_threads,
+            instance_pool,
         ) {
             Ok(inst) => {
                 for m in inst.take_log() {
@@ -329,8 +365,10 @@ pub unsafe extern "C" fn fmi2Instantiate(
                 }
                 Box::into_raw(Box::new(Component {
                     logger: logger as Arc<dyn Logger>,
+                    setup: inst.setup_control(),
                     inst: Mutex::new(inst),
                     fatal: AtomicBool::new(false),
+                    owner: AtomicUsize::new(0),
                 })) as fmi2Component
             }
             Err(m) => fail(&m),
@@ -693,10 +731,39 @@ pub unsafe extern "C" fn fmi2DoStep(
     })
 }
 
-/// fmi2CancelStep: not supported (doStep is synchronous).
+/// fmi2CancelStep. FMI 2.0 defines it for a doStep that returned fmi2Pending, which this FMU
+/// never returns (doStep is synchronous), and does not require an instance to accept calls from
+/// two threads at once. The closest useful thing: called from another thread while a set-up
+/// runs (fmi2EnterInitializationMode, or fmi2ExitInitializationMode after parameter changes),
+/// it asks the set-up to stop at its next stage boundary and returns fmi2OK at once, without
+/// waiting for the instance; the set-up's call then returns fmi2Error ("stopped ...") and the
+/// instance stays in the state it was in. A doStep cannot be stopped (its work is bounded by
+/// solver.max_steps): fmi2Error, at once as well. With no call running: fmi2Error.
 #[no_mangle]
 pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
-    with_instance(c, "fmi2CancelStep", |i| i.cancel_step())
+    if c.is_null() {
+        return fmi2Status::fmi2Error;
+    }
+    // c came from fmi2Instantiate (caller's contract).
+    let comp = &*(c as *const Component);
+    let owner = comp.owner.load(Ordering::SeqCst);
+    if owner == 0 || owner == thread_id() {
+        return guard(comp, "fmi2CancelStep", |i| i.cancel_step());
+    }
+    let r = catch_unwind(AssertUnwindSafe(|| {
+        if comp.setup.cancel() {
+            fmi2Status::fmi2OK
+        } else {
+            comp.logger.log(
+                Status::Error,
+                "logStatusError",
+                "fmi2CancelStep: the call running on another thread is not a set-up and cannot be \
+                 stopped (a doStep's work is bounded by solver.max_steps)",
+            );
+            fmi2Status::fmi2Error
+        }
+    }));
+    r.unwrap_or(fmi2Status::fmi2Fatal)
 }
 
 /// fmi2GetStatus: fmi2Discard (only meaningful after fmi2Pending, which never happens).
@@ -778,73 +845,14 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
     })
 }
 
-/// How fmi2Instantiate starts an instance's worker threads (the instance's `ThreadRunner`):
-/// from a thread of [`run_on_os_thread`], so that none of them pins this library.
-fn start_threads(job: Job<'_>) -> Result<(), String> {
-    run_on_os_thread(job)
+/// The worker pool of an instance made by fmi2Instantiate: its own threads
+/// ([`threads::InstanceThreads`]), which nothing outlives.
+fn instance_pool(name: &str) -> Result<WorkerPool, String> {
+    let t = threads::InstanceThreads::start(name, instance_threads())?;
+    Ok(WorkerPool::with_executor(Box::new(t)))
 }
 
-/// Runs `f` on a new OS thread created with `pthread_create` and waits for it to end.
-///
-/// Used to start an instance's worker threads off the host's thread: `std::thread::spawn`
-/// registers a thread-local destructor (std's spawn hooks) on the *calling* thread with
-/// `__cxa_thread_atexit_impl`, and glibc keeps a library loaded while any thread holds one of
-/// its TLS destructors. Spawned from the host's thread (which typically never exits), the
-/// workers pinned every loaded copy of this library: `dlclose` never unmapped it. The thread
-/// made here ends (running its TLS destructors) before this returns.
-#[cfg(unix)]
-fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
-    type Job<'a> = Option<Box<dyn FnOnce() + Send + 'a>>;
-    extern "C" fn start(p: *mut c_void) -> *mut c_void {
-        // SAFETY: p is the `Job` below, which the creating thread keeps alive and does not
-        // touch until pthread_join has returned.
-        let job = unsafe { &mut *(p as *mut Job<'static>) };
-        if let Some(f) = job.take() {
-            // f catches its own panics; this is the last line of defence before the C frame.
-            let _ = catch_unwind(AssertUnwindSafe(f));
-        }
-        std::ptr::null_mut()
-    }
-    let mut out: Option<std::thread::Result<R>> = None;
-    let slot = &mut out;
-    let mut job: Job<'_> = Some(Box::new(move || {
-        *slot = Some(catch_unwind(AssertUnwindSafe(f)));
-    }));
-    // SAFETY: plain pthread calls; the job outlives the thread (joined below before `job` is
-    // dropped), and a failed join of a joinable thread we just created cannot be recovered
-    // from soundly (the thread could still use `job`), hence the abort.
-    unsafe {
-        let mut tid: libc::pthread_t = std::mem::zeroed();
-        let rc = libc::pthread_create(
-            &mut tid,
-            std::ptr::null(),
-            start,
-            &mut job as *mut Job<'_> as *mut c_void,
-        );
-        if rc != 0 {
-            return Err(format!(
-                "cannot start a thread: {}",
-                std::io::Error::from_raw_os_error(rc)
-            ));
-        }
-        if libc::pthread_join(tid, std::ptr::null_mut()) != 0 {
-            std::process::abort();
-        }
-    }
-    drop(job);
-    match out {
-        Some(Ok(r)) => Ok(r),
-        Some(Err(p)) => Err(format!("internal error (panic): {}", panic_message(&*p))),
-        None => Err("internal error: the thread did not run".into()),
-    }
-}
-
-/// Elsewhere: a scoped std thread (no TLS-destructor pinning to avoid).
-#[cfg(not(unix))]
-fn run_on_os_thread<R: Send>(f: impl FnOnce() -> R + Send) -> Result<R, String> {
-    std::thread::scope(|s| s.spawn(f).join())
-        .map_err(|p| format!("internal error (panic): {}", panic_message(&*p)))
-}
+mod threads;
 
 #[cfg(test)]
 mod tests;

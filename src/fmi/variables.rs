@@ -201,6 +201,59 @@ pub const UNITS: [UnitDef; 9] = [
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
+/// Values of the Integer parameter gravity_source (`instance::GravitySource`): gravity from the
+/// scene's law, or from the inputs gravity_*.
+pub const GRAVITY_FROM_SCENE: i32 = 1;
+pub const GRAVITY_FROM_INPUTS: i32 = 2;
+
+/// A coordinate for a text: rounded to 12 significant digits, then the shortest form that
+/// reads back to the rounded value (0.48750000000000004 reads "0.4875"). 12 digits resolve a
+/// position to 1e-12 of its size, far below the 2^-20 of the particle spacing that positions
+/// keep (`physics::world::build::MIN_SPACING_BITS`).
+pub fn coordinate(v: f64) -> String {
+    let rounded = format!("{v:.11e}").parse::<f64>().unwrap_or(v);
+    limits::num(rounded)
+}
+
+/// A point for a text: "(x, y, z)" of [`coordinate`]s.
+pub fn point(p: &[f64]) -> String {
+    let c: Vec<String> = p.iter().map(|&v| coordinate(v)).collect();
+    format!("({})", c.join(", "))
+}
+
+/// The range of a parameter as its description quotes it: the declared [min, max] (the XML's
+/// `min`/`max`, the page's range column), and for a parameter whose 0 means "off" what 0
+/// means and the smallest other value.
+pub fn describe_range(q: Quantity) -> String {
+    let Some((r, off)) = parameter_range(q) else {
+        return String::new();
+    };
+    let unit = if r.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", r.unit)
+    };
+    if off {
+        format!(
+            "in [0, {}]{unit} (0 = {}; otherwise at least {}{unit})",
+            limits::num(r.max),
+            off_meaning(q),
+            limits::num(r.min)
+        )
+    } else {
+        format!("in {}", r.describe())
+    }
+}
+
+/// What 0 means for a parameter that accepts it besides its range.
+fn off_meaning(q: Quantity) -> &'static str {
+    if q == Quantity::SolverDt {
+        "automatic"
+    } else {
+        "no fracture"
+    }
+}
+
 /// The variable table of a scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VariableTable {
@@ -249,7 +302,11 @@ impl VariableTable {
                         quantity: Quantity| {
             let value_reference = vars.len() as u32;
             let bounds = match quantity {
-                Quantity::GravitySource | Quantity::BoundaryTiming => Some((1.0, 2.0)),
+                Quantity::GravitySource => Some((
+                    f64::from(GRAVITY_FROM_SCENE),
+                    f64::from(GRAVITY_FROM_INPUTS),
+                )),
+                Quantity::BoundaryTiming => Some((1.0, 2.0)),
                 _ => parameter_range(quantity).map(|(r, off)| {
                     let min = if off { 0.0 } else { r.min };
                     (min, r.max)
@@ -303,9 +360,9 @@ impl VariableTable {
                 Fixed,
                 None,
                 format!(
-                    "Poisson's ratio of body '{}', in {}",
+                    "Poisson's ratio of body '{}', {}",
                     body.name,
-                    limits::POISSON.describe()
+                    describe_range(Quantity::Poisson(b))
                 ),
                 Some(m.poisson),
                 Quantity::Poisson(b),
@@ -318,10 +375,10 @@ impl VariableTable {
             Fixed,
             Some("s"),
             format!(
-                "Fixed solver time step, in {}; 0 = automatic (safety factor times the stability \
-                 limit). Each doStep is split into equal sub-steps no longer than this and lands \
+                "Fixed solver time step, {}. Automatic: the safety factor times the stability \
+                 limit. Each doStep is split into equal sub-steps no longer than this and lands \
                  exactly on t + h",
-                limits::SOLVER_DT.describe()
+                describe_range(Quantity::SolverDt)
             ),
             Some(scene.solver.dt.unwrap_or(0.0)),
             Quantity::SolverDt,
@@ -344,9 +401,9 @@ impl VariableTable {
             Fixed,
             None,
             format!(
-                "Critical bond strain eps_max of Eq. (42), in {}: a bond stretched beyond it breaks \
-                 for good; 0 = no fracture",
-                limits::FRACTURE_STRAIN.describe()
+                "Critical bond strain eps_max of Eq. (42), {}: a bond stretched beyond it breaks \
+                 for good",
+                describe_range(Quantity::FractureStrain)
             ),
             Some(scene.solver.fracture_strain.unwrap_or(0.0)),
             Quantity::FractureStrain,
@@ -370,9 +427,12 @@ impl VariableTable {
                 Continuous,
                 Some("m/s2"),
                 format!(
-                    "Gravity, {axis} component. Until the host sets a gravity component to a value \
-                     other than the one it has, the scene's gravity law applies{ramp}; from then on \
-                     the gravity vector is held constant at the values set"
+                    "Gravity, {axis} component. Acts when gravity_source = {inputs}: held over each \
+                     step, or linear with its input derivative. Ignored when gravity_source = \
+                     {scene_law}: the scene's gravity law applies{ramp} (a warning is logged if it \
+                     is set to another value)",
+                    inputs = GRAVITY_FROM_INPUTS,
+                    scene_law = GRAVITY_FROM_SCENE
                 ),
                 Some(scene.gravity.vector.get(k).copied().unwrap_or(0.0)),
                 Quantity::Gravity(k),
@@ -428,8 +488,9 @@ impl VariableTable {
                     Continuous,
                     Some("m"),
                     format!(
-                        "Displacement of probe '{}' at reference point {:?}, {axis} component",
-                        probe.name, probe.point
+                        "Displacement of probe '{}' at reference point {} m, {axis} component",
+                        probe.name,
+                        point(&probe.point)
                     ),
                     None,
                     Quantity::ProbeDisplacement(p, k),
@@ -503,16 +564,19 @@ impl VariableTable {
             Fixed,
             None,
             format!(
-                "Where gravity comes from: 1 = the scene's gravity law{ramp}, the inputs gravity_* \
-                 are ignored (a warning is logged if they are set to other values); 2 = the inputs \
-                 gravity_*, held over each step or linear with fmi2SetRealInputDerivatives. \
-                 Default: 1 for a scene with a time law, else 2"
+                "Where gravity comes from: {scene_law} = the scene's gravity law{ramp}, the inputs \
+                 gravity_* are ignored (a warning is logged if they are set to other values); \
+                 {inputs} = the inputs gravity_*, held over each step or linear with \
+                 fmi2SetRealInputDerivatives. Default: {scene_law} for a scene with a time law, \
+                 else {inputs}",
+                inputs = GRAVITY_FROM_INPUTS,
+                scene_law = GRAVITY_FROM_SCENE
             ),
-            Some(if scene.gravity.paper_ramp_period.is_some() {
-                1.0
+            Some(f64::from(if scene.gravity.paper_ramp_period.is_some() {
+                GRAVITY_FROM_SCENE
             } else {
-                2.0
-            }),
+                GRAVITY_FROM_INPUTS
+            })),
             Quantity::GravitySource,
         );
         push(
@@ -540,8 +604,9 @@ impl VariableTable {
                     Continuous,
                     Some("m/s"),
                     format!(
-                        "Velocity of probe '{}' at reference point {:?}, {axis} component",
-                        probe.name, probe.point
+                        "Velocity of probe '{}' at reference point {} m, {axis} component",
+                        probe.name,
+                        point(&probe.point)
                     ),
                     None,
                     Quantity::ProbeVelocity(p, k),
@@ -661,14 +726,7 @@ impl VariableTable {
             let msg = range.check(v).err().unwrap_or_default();
             return Err(match off {
                 false => format!("{field}: {msg}"),
-                true => format!(
-                    "{field}: {msg} (or 0 = {})",
-                    if q == Quantity::SolverDt {
-                        "automatic"
-                    } else {
-                        "off"
-                    }
-                ),
+                true => format!("{field}: {msg} (or 0 = {})", off_meaning(q)),
             });
         }
         match q {

@@ -17,23 +17,16 @@ pub mod second_order;
 pub mod shape;
 pub mod world;
 
-/// Brings rayon's parallel-iterator traits into scope when the `parallel` feature is on.
-pub mod par {
-    #[cfg(feature = "parallel")]
-    pub use rayon::prelude::*;
-}
+pub mod par;
 
-/// Iterates mutably over a slice, in parallel with rayon when the `parallel` feature is on.
-/// Every use gathers into its own element, so results do not depend on the thread count.
+/// Iterates mutably over a slice in parallel ([`par::ParMut`]: on the installed executor, else
+/// rayon with the `parallel` feature, else serially). Every use gathers into its own element,
+/// so results do not depend on the thread count.
 #[macro_export]
 macro_rules! par_iter_mut {
-    ($t:expr) => {{
-        #[cfg(feature = "parallel")]
-        let it = $t.par_iter_mut();
-        #[cfg(not(feature = "parallel"))]
-        let it = $t.iter_mut();
-        it
-    }};
+    ($t:expr) => {
+        $crate::physics::par::ParMut(&mut $t[..])
+    };
 }
 
 pub use dim::{Dim, Mat, Space, Vect};

@@ -512,10 +512,7 @@ where
     // The axes' solves are independent: side by side (each is a few thousand iterations of
     // small parallel passes, which keep fewer than two cores busy).
     let solve = |t: &Vec<f64>| sys.solve(t);
-    #[cfg(feature = "parallel")]
-    let solved: Vec<_> = targets.par_iter().map(solve).collect();
-    #[cfg(not(feature = "parallel"))]
-    let solved: Vec<_> = targets.iter().map(solve).collect();
+    let solved: Vec<_> = crate::physics::par::map(&targets, solve);
     for (d, (t, (c, iters, res))) in targets.iter().zip(solved).enumerate() {
         let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
         // (NaN fails it too.)

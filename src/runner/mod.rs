@@ -3,6 +3,7 @@
 pub mod analysis;
 
 use self::analysis::{dominant_frequency, peak};
+use crate::physics::world::{SetupObserver, SetupStage};
 use crate::scene::limits::num;
 use crate::scene::{axis_index, Scene, SceneWarning};
 use crate::sim::Simulation;
@@ -77,6 +78,26 @@ pub enum RunEvent<'a> {
     Sample(f64),
     /// A solver step ended at `time` (s); `steps` solver steps so far in this run.
     Step { time: f64, steps: u64 },
+    /// A stage of the model's set-up ended after `seconds` (wall clock), as it happens.
+    Setup {
+        stage: SetupStage,
+        seconds: f64,
+        detail: &'a str,
+    },
+}
+
+/// Relays the set-up's stages to a run's `on_event` (the set-up runs on the calling thread).
+struct SetupRelay<'a, F>(std::cell::RefCell<&'a mut F>);
+
+impl<F: FnMut(RunEvent)> SetupObserver for SetupRelay<'_, F> {
+    fn stage_done(&self, stage: SetupStage, seconds: f64, detail: &str) {
+        let mut f = self.0.borrow_mut();
+        (*f)(RunEvent::Setup {
+            stage,
+            seconds,
+            detail,
+        });
+    }
 }
 
 /// Result of a run; `error` is set when the solver stopped early (the series keeps what was
@@ -219,7 +240,16 @@ pub fn run_scene(scene: &Scene, mut on_sample: impl FnMut(f64)) -> Result<RunRes
 /// solver.max_particle_steps; the message gives its estimated wall time). The model is ready
 /// for [`run_prepared`].
 pub fn prepare(scene: &Scene) -> Result<Simulation, String> {
-    let sim = Simulation::new(scene).map_err(|e| e.to_string())?;
+    prepare_with(scene, &mut |_| {})
+}
+
+/// [`prepare`], telling `on_event` of each stage of the set-up as it ends ([`RunEvent::Setup`]).
+pub fn prepare_with<F: FnMut(RunEvent)>(
+    scene: &Scene,
+    on_event: &mut F,
+) -> Result<Simulation, String> {
+    let sim = Simulation::new_observed(scene, &SetupRelay(std::cell::RefCell::new(on_event)))
+        .map_err(|e| e.to_string())?;
     check_free_particles(&sim)?;
     sim.check_work(scene.end_time).map_err(|e| e.to_string())?;
     Ok(sim)
@@ -230,9 +260,10 @@ pub fn prepare(scene: &Scene) -> Result<Simulation, String> {
 pub fn run_scene_with(
     scene: &Scene,
     opts: RunOptions,
-    on_event: impl FnMut(RunEvent),
+    mut on_event: impl FnMut(RunEvent),
 ) -> Result<RunResult, String> {
-    run_prepared(scene, prepare(scene)?, opts, on_event)
+    let sim = prepare_with(scene, &mut on_event)?;
+    run_prepared(scene, sim, opts, on_event)
 }
 
 /// Runs a model built by [`prepare`] from `scene` to the scene's end time.

@@ -4,7 +4,8 @@ use super::fill::body_points;
 use super::{axis_index, err, BodyVelocity, Region, Scene, SceneError, SceneWarning};
 use crate::physics::boundary::GravityLaw;
 use crate::physics::dim::to3;
-use crate::physics::world::GroupInit;
+use crate::physics::world::{GroupInit, SetupObserver, SetupStage, Unobserved};
+use crate::physics::SimError;
 use crate::physics::{BodyInit, Dim, InitialVelocity, Space, Vect, World};
 
 /// A probe located in the built world.
@@ -109,7 +110,14 @@ where
     /// exceeds the memory available is refused before anything is allocated, and the big
     /// arrays are reserved fallibly, so running out of memory is an error, not an abort.
     pub fn build(scene: &Scene) -> Result<Self, SceneError> {
+        Self::build_observed(scene, &Unobserved)
+    }
+
+    /// [`Model::build`] with the set-up's stages told to `observer` as they end (the particles
+    /// here, the rest in `World::new_observed`), which may stop it at a stage boundary.
+    pub fn build_observed(scene: &Scene, observer: &dyn SetupObserver) -> Result<Self, SceneError> {
         assert_eq!(scene.dimension, D, "scene dimension");
+        let fill_start = std::time::Instant::now();
         scene.validate()?;
         super::memory::check(scene)?;
         let dp = scene.particle_spacing;
@@ -202,8 +210,24 @@ where
             Some(period) => GravityLaw::PaperRamp { full: g, period },
             None => GravityLaw::Constant(g),
         };
-        let world = World::new(dp, scene.solver.clone(), bodies, groups, loads, gravity)
-            .map_err(|e| err("scene", e.to_string()))?;
+        observer.stage_done(
+            SetupStage::Particles,
+            fill_start.elapsed().as_secs_f64(),
+            &format!("{count} particles"),
+        );
+        let world = World::new_observed(
+            dp,
+            scene.solver.clone(),
+            bodies,
+            groups,
+            loads,
+            gravity,
+            observer,
+        )
+        .map_err(|e| match e {
+            SimError::SetupTooLong { .. } => err("solver.max_setup_seconds", e.to_string()),
+            e => err("scene", e.to_string()),
+        })?;
         for (k, r) in world.closure.iter().enumerate() {
             // A body already warned of as under-resolved gets no second warning: its geometry
             // is the cause, and refining it is the remedy of both.

@@ -150,6 +150,15 @@ pub const SPEED: Range = Range {
 /// memory and written as CSV (1e6 samples of 10 probes is about 240 MB).
 pub const MAX_OUTPUTS: f64 = 1e6;
 
+/// Wall-clock bound of the model's set-up (s). From a second (a test's quick refusal) to a
+/// week.
+pub const MAX_SETUP_SECONDS: Range = Range {
+    field: "solver.max_setup_seconds",
+    min: 1.0,
+    max: 604_800.0,
+    unit: "s",
+};
+
 /// Every closed range above: the JSON Schema of the scene (src/scene/schema.rs) states each as the
 /// `minimum`/`maximum` of its field.
 pub const RANGES: &[Range] = &[
@@ -162,6 +171,7 @@ pub const RANGES: &[Range] = &[
     FRACTURE_STRAIN,
     END_TIME,
     OUTPUT_INTERVAL,
+    MAX_SETUP_SECONDS,
 ];
 
 /// A bound of a scene number that is not an FMI parameter (so not a closed [`Range`]): one- or
@@ -311,8 +321,8 @@ pub const BOUNDS: &[Bound] = &[
     MODE_SHAPE_LENGTH,
 ];
 
-/// Defaults of `solver.max_steps`, `solver.max_particle_steps` and `solver.max_particles` (kept
-/// with the solver options).
+/// Defaults of `solver.max_steps`, `solver.max_particle_steps`, `solver.max_particles` and
+/// `solver.max_setup_seconds` (kept with the solver options).
 pub use crate::physics::params::{
     DEFAULT_MAX_PARTICLES, DEFAULT_MAX_PARTICLE_STEPS, DEFAULT_MAX_STEPS,
 };

@@ -324,6 +324,7 @@ impl Scene {
         }
         bounded(&limits::MAX_STEPS, o.max_steps as f64)?;
         bounded(&limits::MAX_PARTICLE_STEPS, o.max_particle_steps as f64)?;
+        ranged("", &limits::MAX_SETUP_SECONDS, o.max_setup_seconds)?;
         let c = &o.contact;
         bounded(&limits::SURFACE_THRESHOLD, c.surface_threshold)?;
         bounded(&limits::OVERLAP_FRACTION, c.overlap_fraction)?;

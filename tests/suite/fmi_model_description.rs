@@ -232,3 +232,153 @@ fn pack_writes_a_complete_fmu() {
     assert!(missing.contains("cannot read the library"), "{missing}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The decimal numbers of a text (as written: digits, one point, an optional exponent).
+fn numbers(text: &str) -> Vec<&str> {
+    let b = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        if b[i].is_ascii_digit()
+            && (i == 0 || !(b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_'))
+        {
+            let s = i;
+            while i < b.len() && (b[i].is_ascii_digit() || b[i] == b'.') {
+                i += 1;
+            }
+            if i + 1 < b.len() && b[i] == b'e' && (b[i + 1].is_ascii_digit() || b[i + 1] == b'-') {
+                i += 2;
+                while i < b.len() && b[i].is_ascii_digit() {
+                    i += 1;
+                }
+            }
+            out.push(text[s..i].trim_end_matches('.'));
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+/// Significant digits of a decimal number as written.
+fn significant_digits(n: &str) -> usize {
+    let mantissa = n.split('e').next().unwrap();
+    let digits: String = mantissa.chars().filter(|c| c.is_ascii_digit()).collect();
+    digits.trim_start_matches('0').len()
+}
+
+/// "[a, b]" ranges quoted in a text, as numbers.
+fn quoted_ranges(text: &str) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    for part in text.split('[').skip(1) {
+        let Some(inner) = part.split(']').next() else {
+            continue;
+        };
+        let v: Vec<&str> = inner.split(", ").collect();
+        if let [a, b] = v[..] {
+            if let (Ok(a), Ok(b)) = (a.parse::<f64>(), b.parse::<f64>()) {
+                out.push((a, b));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn generated_texts_agree_with_the_tables() {
+    // Issue 27.13: the FMU's documentation contradicted itself. Every text is generated from the
+    // variable table and the limits table; these checks hold for every scene in scenes/.
+    for (path, scene) in scenes() {
+        let table = VariableTable::new(&scene);
+        let at = path.display();
+        let sim = mps_solid::Simulation::new(&scene).unwrap();
+        let doc = documentation_html(&scene, &sim);
+        let xml = model_description_xml(&scene);
+        for v in &table.vars {
+            // A range a description quotes is the variable's declared min/max.
+            for (lo, hi) in quoted_ranges(&v.description) {
+                assert_eq!(
+                    (Some(lo), Some(hi)),
+                    (v.min, v.max),
+                    "{at}: {} quotes [{lo}, {hi}] but declares min {:?} max {:?}: {}",
+                    v.name,
+                    v.min,
+                    v.max,
+                    v.description
+                );
+            }
+            // No description carries round-off digits (0.48750000000000004): 12 significant
+            // digits resolve a position to 1e-12 of its size, far below the 2^-20 of the
+            // particle spacing that positions keep (physics::world::build::MIN_SPACING_BITS).
+            for n in numbers(&v.description) {
+                assert!(
+                    significant_digits(n) <= 12,
+                    "{at}: {}: '{n}' in '{}'",
+                    v.name,
+                    v.description
+                );
+            }
+            // The gravity inputs describe the rule in force: gravity_source.
+            if v.name.starts_with("gravity_") && v.causality == Causality::Input {
+                assert!(
+                    v.description.contains("gravity_source")
+                        && !v.description.contains("Until the host sets"),
+                    "{at}: {}: {}",
+                    v.name,
+                    v.description
+                );
+            }
+        }
+        // Integer start values and bounds are integers in the XML and on the page.
+        for (name, attrs) in elements(&xml) {
+            if name == "Integer" {
+                for k in ["start", "min", "max"] {
+                    if let Some(s) = attrs.get(k) {
+                        assert!(s.parse::<i64>().is_ok(), "{at}: Integer {k} = '{s}'");
+                    }
+                }
+            }
+        }
+        for v in table.vars.iter().filter(|v| v.ty.name() == "Integer") {
+            if let Some(s) = v.start {
+                let cell = format!(
+                    "<td>Integer</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
+                    v.causality.name(),
+                    v.variability.name(),
+                    v.unit.unwrap_or("-"),
+                    s as i64
+                );
+                assert!(
+                    doc.contains(&cell),
+                    "{at}: {} start on the page is not {}",
+                    v.name,
+                    s as i64
+                );
+            }
+        }
+        // The page's numbers: no round-off digits, no "1 bodies".
+        let escaped = scene
+            .description
+            .replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+            .replace('"', "&quot;");
+        for n in numbers(&doc.replace(&escaped, "")) {
+            assert!(significant_digits(n) <= 12, "{at}: '{n}' on the page");
+        }
+        assert!(!doc.contains(" 1 bodies"), "{at}: '1 bodies'");
+        // The range column of the page is the declared min/max.
+        for v in &table.vars {
+            if let (Some(lo), Some(hi)) = (v.min, v.max) {
+                let row_start = format!("<td><code>{}</code></td>", v.name);
+                let row = doc
+                    .lines()
+                    .find(|l| l.contains(&row_start))
+                    .unwrap_or_else(|| panic!("{at}: no row of {}", v.name));
+                let ranges = quoted_ranges(row);
+                assert_eq!(ranges.first(), Some(&(lo, hi)), "{at}: {row}");
+                assert!(ranges.iter().all(|r| *r == (lo, hi)), "{at}: {row}");
+            }
+        }
+    }
+}

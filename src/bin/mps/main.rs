@@ -7,7 +7,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mps_solid::physics::ElasticModel;
 mod run_outputs;
 mod run_progress;
-use mps_solid::runner::{energy_csv, prepare, run_prepared, series_csv, RunOptions};
+use mps_solid::runner::{
+    energy_csv, prepare_with, run_prepared, series_csv, RunEvent, RunOptions,
+};
 use mps_solid::Scene;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -123,6 +125,36 @@ fn main() -> ExitCode {
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE
+        }
+    }
+}
+
+/// Set-up time after which `mps run` reports the set-up's stages on stderr (s): a quick set-up
+/// stays silent, a long one shows its stages as they end (the ones before, at once).
+const SETUP_REPORT_AFTER: f64 = 1.0;
+
+/// The set-up's stage lines of a run: held until the set-up has taken [`SETUP_REPORT_AFTER`],
+/// then written to stderr as they come.
+#[derive(Default)]
+struct SetupLines {
+    held: Vec<String>,
+    total: f64,
+}
+
+impl SetupLines {
+    fn stage(&mut self, name: &str, seconds: f64, detail: &str) {
+        let detail = if detail.is_empty() {
+            String::new()
+        } else {
+            format!(" ({detail})")
+        };
+        self.held
+            .push(format!("set-up: {name} took {seconds:.2} s{detail}"));
+        self.total += seconds;
+        if self.total >= SETUP_REPORT_AFTER {
+            for l in self.held.drain(..) {
+                eprintln!("{l}");
+            }
         }
     }
 }
@@ -251,7 +283,17 @@ fn run_command(
     json: bool,
 ) -> Result<ExitCode, String> {
     let sc = Scene::load(scene).map_err(|e| e.to_string())?;
-    let sim = prepare(&sc)?;
+    let mut setup = SetupLines::default();
+    let sim = prepare_with(&sc, &mut |e| {
+        if let RunEvent::Setup {
+            stage,
+            seconds,
+            detail,
+        } = e
+        {
+            setup.stage(stage.name(), seconds, detail)
+        }
+    })?;
     let mut files = run_outputs::RunOutputs::open(out, energy)?;
     let mut progress = run_progress::RunProgress::new(&sc, &sim);
     let _interrupt = StopOnInterrupt::install();

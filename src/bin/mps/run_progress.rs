@@ -79,6 +79,8 @@ impl RunProgress {
                 }
             }
             RunEvent::Step { time, steps } => self.step(time, steps),
+            // The set-up ends before the run's progress starts (mps run prints its stages).
+            RunEvent::Setup { .. } => {}
         }
     }
 

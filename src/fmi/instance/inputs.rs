@@ -1,5 +1,6 @@
 //! Inputs: the values of the inputs as the host set them, their derivatives for the next step,
 //! and the FMU-level settings ([`GravitySource`], [`BoundaryTiming`]).
+use crate::fmi::variables::{GRAVITY_FROM_INPUTS, GRAVITY_FROM_SCENE};
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
 
@@ -7,9 +8,9 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum GravitySource {
     /// The scene's gravity law (constant, or the Eq. (46) ramp); the gravity inputs are ignored.
-    Scene = 1,
+    Scene = GRAVITY_FROM_SCENE as isize,
     /// The inputs gravity_x/y/z, held over each step (or linear with input derivatives).
-    Inputs = 2,
+    Inputs = GRAVITY_FROM_INPUTS as isize,
 }
 
 impl GravitySource {
@@ -24,8 +25,8 @@ impl GravitySource {
     }
     pub fn from_int(v: i32) -> Option<Self> {
         match v {
-            1 => Some(GravitySource::Scene),
-            2 => Some(GravitySource::Inputs),
+            GRAVITY_FROM_SCENE => Some(GravitySource::Scene),
+            GRAVITY_FROM_INPUTS => Some(GravitySource::Inputs),
             _ => None,
         }
     }

@@ -4,14 +4,17 @@
 use super::inputs::{BoundaryTiming, GravitySource, Inputs};
 use super::logging::{LogRecord, Logger, PendingLog};
 use super::resources::{load_scene, resource_dir};
+use super::status::Status;
 use super::status::{FmiError, FmiResult};
-use super::worker_pool::{scoped_thread, ThreadRunner, WorkerPool};
+use super::worker_pool::WorkerPool;
 use crate::fmi::model_description::guid;
 use crate::fmi::variables::{Quantity, VariableTable};
+use crate::physics::world::{SetupObserver, SetupStage};
 use crate::scene::limits::num;
 use crate::scene::Scene;
 use crate::sim::Simulation;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 /// The FMI 2.0 co-simulation states this FMU distinguishes.
@@ -35,6 +38,57 @@ impl Mode {
             Mode::Error => "Error",
             Mode::Terminated => "Terminated",
         }
+    }
+}
+
+/// What a set-up in progress (fmi2EnterInitializationMode, fmi2ExitInitializationMode after
+/// parameter changes) shares with other threads: whether one runs, and the request to stop it
+/// (fmi2CancelStep from another thread; see `ffi::fmi2CancelStep`).
+#[derive(Debug, Default)]
+pub struct SetupControl {
+    building: AtomicBool,
+    cancel: AtomicBool,
+}
+
+impl SetupControl {
+    /// Whether a set-up is running.
+    pub fn building(&self) -> bool {
+        self.building.load(Ordering::SeqCst)
+    }
+    /// Asks the running set-up to stop at its next stage boundary; false if none runs.
+    pub fn cancel(&self) -> bool {
+        self.cancel.store(true, Ordering::SeqCst);
+        self.building()
+    }
+}
+
+/// The set-up's observer of an instance: each stage to the host's logger as it ends (category
+/// logEvents), and the stop requested by fmi2CancelStep.
+struct SetupLog<'a> {
+    logger: Option<Arc<dyn Logger>>,
+    control: &'a SetupControl,
+}
+
+impl SetupObserver for SetupLog<'_> {
+    fn stage_done(&self, stage: SetupStage, seconds: f64, detail: &str) {
+        if let Some(l) = &self.logger {
+            let detail = if detail.is_empty() {
+                String::new()
+            } else {
+                format!(" ({detail})")
+            };
+            l.log(
+                Status::Ok,
+                "logEvents",
+                &format!("set-up: {} took {seconds:.2} s{detail}", stage.name()),
+            );
+        }
+    }
+    fn stop(&self) -> Option<String> {
+        self.control
+            .cancel
+            .load(Ordering::SeqCst)
+            .then(|| "fmi2CancelStep was called".to_string())
     }
 }
 
@@ -67,12 +121,14 @@ pub struct Instance {
     /// The messages of the current call (handed to the logger after the call has released the
     /// instance: [`Instance::take_log`]) and the debug-logging switches.
     pub(super) log: PendingLog,
+    /// The running set-up's state, shared with fmi2CancelStep.
+    pub(super) control: Arc<SetupControl>,
 }
 
 impl Instance {
     /// fmi2Instantiate: checks the type, reads the scene from the resources and the GUID. The
-    /// worker threads are spawned from a scoped thread (the C layer passes its own thread
-    /// runner to `instantiate_with_runner`).
+    /// solver work runs on a rayon pool of the instance's own ([`WorkerPool::new`]; the C
+    /// layer passes its own threads to `instantiate_with_pool`).
     pub fn instantiate(
         name: &str,
         co_simulation: bool,
@@ -81,27 +137,27 @@ impl Instance {
         logger: Arc<dyn Logger>,
         logging_on: bool,
     ) -> Result<Instance, String> {
-        Self::instantiate_with_runner(
+        Self::instantiate_with_pool(
             name,
             co_simulation,
             fmu_guid,
             resource_location,
             logger,
             logging_on,
-            scoped_thread,
+            WorkerPool::new,
         )
     }
 
-    /// [`Instance::instantiate`], spawning the worker threads from a thread that `run` starts
-    /// (the C layer passes its own: see [`ThreadRunner`]).
-    pub(crate) fn instantiate_with_runner(
+    /// [`Instance::instantiate`] with the worker pool that `pool` starts (called with the
+    /// instance name once the arguments are checked).
+    pub(crate) fn instantiate_with_pool(
         name: &str,
         co_simulation: bool,
         fmu_guid: &str,
         resource_location: Option<&str>,
         logger: Arc<dyn Logger>,
         logging_on: bool,
-        run: ThreadRunner,
+        pool: impl FnOnce(&str) -> Result<WorkerPool, String>,
     ) -> Result<Instance, String> {
         if !co_simulation {
             return Err(
@@ -120,7 +176,7 @@ impl Instance {
                 env!("CARGO_PKG_VERSION")
             ));
         }
-        let pool = WorkerPool::with_runner(name, run)?;
+        let pool = pool(name)?;
         let table = VariableTable::new(&scene);
         let inst = Instance {
             name: name.to_string(),
@@ -141,6 +197,7 @@ impl Instance {
             last_successful_time: 0.0,
             stop_time: None,
             log: PendingLog::new(logger, logging_on),
+            control: Arc::default(),
         };
         inst.log.event(&format!(
             "instantiated '{}' (scene '{}', {} variables)",
@@ -156,11 +213,23 @@ impl Instance {
         Ok(inst)
     }
 
+    /// The state of a running set-up, for fmi2CancelStep from another thread.
+    pub fn setup_control(&self) -> Arc<SetupControl> {
+        self.control.clone()
+    }
+
     pub fn mode(&self) -> Mode {
         self.mode
     }
+    /// Where the last step ended, in the host's time (startTime plus the simulated time, as
+    /// the host sums it): what the next doStep's currentCommunicationPoint must be.
     pub fn time(&self) -> f64 {
         self.time
+    }
+    /// The simulated time since startTime (s): what the model has advanced (0 before the
+    /// model is built).
+    pub fn simulated_time(&self) -> f64 {
+        self.sim.as_ref().map_or(0.0, |s| s.time())
     }
     pub fn table(&self) -> &VariableTable {
         &self.table
@@ -215,9 +284,12 @@ impl Instance {
             )));
         }
         if let Some(s) = stop {
-            if !(s.is_finite() && s > start) {
+            if !s.is_finite() {
+                return Err(FmiError::Invalid(format!("stopTime = {s} must be finite")));
+            }
+            if s < start {
                 return Err(FmiError::Invalid(format!(
-                    "stopTime = {} must be finite and after startTime = {}",
+                    "stopTime = {} is before startTime = {} (nothing was set)",
                     num(s),
                     num(start)
                 )));
@@ -243,10 +315,19 @@ impl Instance {
             return Ok(());
         }
         let params = &self.params;
+        // The stages reach the host's logger as they end (the logger is called with the
+        // instance locked: a logger that calls back into it is refused, see ffi::guard).
+        let observer = SetupLog {
+            logger: self.log.immediate("logEvents"),
+            control: &self.control,
+        };
+        self.control.cancel.store(false, Ordering::SeqCst);
+        self.control.building.store(true, Ordering::SeqCst);
         let sim = self
             .pool
-            .install(|| Simulation::new(params))
-            .map_err(|e| FmiError::Solver(format!("cannot build the model: {e}")))?;
+            .install(|| Simulation::new_observed(params, &observer));
+        self.control.building.store(false, Ordering::SeqCst);
+        let sim = sim.map_err(|e| FmiError::Solver(format!("cannot build the model: {e}")))?;
         self.log.event(&format!(
             "built the model: {} particles, {} bonds, solver step {:.4e} s",
             sim.particles(),

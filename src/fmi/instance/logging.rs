@@ -92,6 +92,13 @@ impl PendingLog {
         }
     }
 
+    /// The logger itself when debug logging of `category` is on: for messages that must reach
+    /// the host while a call runs (the set-up's stages), not after it returns.
+    pub(super) fn immediate(&self, category: &str) -> Option<Arc<dyn Logger>> {
+        (self.logging_on && (self.category_on(category) || self.category_on("logAll")))
+            .then(|| self.logger.clone())
+    }
+
     /// Logs an event (category logEvents) when debug logging is on.
     pub(super) fn event(&self, msg: &str) {
         if self.logging_on && (self.category_on("logEvents") || self.category_on("logAll")) {

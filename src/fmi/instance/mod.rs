@@ -28,11 +28,10 @@ mod worker_pool;
 
 pub use fmu_state::FmuState;
 pub use inputs::{BoundaryTiming, GravitySource};
-pub use lifecycle::{Instance, Mode};
+pub use lifecycle::{Instance, Mode, SetupControl};
 pub use logging::{LogRecord, Logger, NoLogger};
 pub use resources::{load_scene, resource_dir};
 pub(crate) use status::panic_message;
 pub use status::{FmiError, FmiResult, Status};
 pub use stepping::{DO_STEP_STATUS, LAST_SUCCESSFUL_TIME, PENDING_STATUS, TERMINATED};
-pub(crate) use worker_pool::Job;
-pub use worker_pool::WorkerPool;
+pub use worker_pool::{instance_threads, WorkerPool};

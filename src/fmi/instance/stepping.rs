@@ -12,6 +12,10 @@ pub const PENDING_STATUS: i32 = 1;
 pub const LAST_SUCCESSFUL_TIME: i32 = 2;
 pub const TERMINATED: i32 = 3;
 
+/// Largest relative difference between the step a doStep simulates and the step the host asked
+/// for (round-off of the simulated time): a step that cannot be resolved this well is refused.
+const STEP_RESOLUTION: f64 = 1e-6;
+
 /// Relative tolerance of time comparisons.
 fn time_tol(t: f64) -> f64 {
     1e-9 * t.abs().max(1.0)
@@ -74,11 +78,29 @@ impl Instance {
                 )));
             }
         }
-        let sim_end = t_end - self.start_time;
         let sim = self
             .sim
             .as_mut()
             .ok_or_else(|| FmiError::Fatal("no model built".into()))?;
+        // The simulated time is kept relative to startTime (the scene's time 0), so that a step
+        // far from time zero simulates h, not t + h - t rounded to the spacing of doubles at t
+        // (issue 27.9: at t = 1e14, t + 0.005 == t). What stays unresolved is a step below the
+        // spacing of doubles at the simulated time itself: refused, before any work.
+        let sim_now = sim.time();
+        let sim_end = sim_now + h;
+        if ((sim_end - sim_now) - h).abs() > STEP_RESOLUTION * h {
+            let spacing = (sim_end.abs().max(sim_now.abs()) * f64::EPSILON).max(f64::MIN_POSITIVE);
+            return Err(FmiError::Invalid(format!(
+                "communicationStepSize = {} is below the resolution of the time: {} s after \
+                 startTime, doubles are {} s apart, so the step would simulate {} s; use steps \
+                 of at least {} s",
+                num(h),
+                num(sim_now),
+                num(spacing),
+                num(sim_end - sim_now),
+                num(spacing / STEP_RESOLUTION)
+            )));
+        }
         // Refused before any work, the instance unchanged (not an Error state).
         sim.check_work(sim_end).map_err(|e| {
             FmiError::Invalid(format!(
@@ -116,12 +138,15 @@ impl Instance {
         }
     }
 
-    /// fmi2CancelStep: doStep is synchronous (it never returns fmi2Pending), so there is never a
-    /// step to cancel; the work of one doStep is bounded by `solver.max_steps` instead.
+    /// fmi2CancelStep with no call running: doStep is synchronous (it never returns
+    /// fmi2Pending), so there is never a step to cancel; the work of one doStep is bounded by
+    /// `solver.max_steps` instead. (A set-up running on another thread is stopped by the C
+    /// layer through [`super::SetupControl`], without this instance's lock.)
     pub fn cancel_step(&mut self) -> FmiResult<()> {
         Err(FmiError::Invalid(
-            "fmi2CancelStep is not supported: fmi2DoStep is synchronous and never returns \
-             fmi2Pending (the work of one step is bounded by solver.max_steps)"
+            "fmi2CancelStep: there is nothing to cancel: fmi2DoStep is synchronous and never \
+             returns fmi2Pending (the work of one step is bounded by solver.max_steps); only a \
+             set-up running on another thread can be stopped"
                 .into(),
         ))
     }

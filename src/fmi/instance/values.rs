@@ -233,9 +233,15 @@ impl Instance {
         order: &[i32],
         values: &[f64],
     ) -> FmiResult<()> {
+        // FMI 2.0 (section 4.2.4, the co-simulation state machine) allows input derivatives
+        // from instantiation on: they apply to the first step like any later one.
         self.require(
             "fmi2SetRealInputDerivatives",
-            &[Mode::InitializationMode, Mode::StepComplete],
+            &[
+                Mode::Instantiated,
+                Mode::InitializationMode,
+                Mode::StepComplete,
+            ],
         )?;
         for ((&r, &o), &x) in vr.iter().zip(order).zip(values) {
             let v = self.var(r, VarType::Real)?;

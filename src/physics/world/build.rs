@@ -2,6 +2,7 @@
 //! operators and the summation-by-parts closure, the first measurement of the stable step)
 //! and the checks of its input.
 use super::mirror::{clamp_followers, find_ghosts};
+use super::setup::{SetupClock, SetupObserver, SetupStage, StageCosts, Unobserved};
 use super::stable_step::{StableStepState, OMEGA_MARGIN};
 use super::{BodyInit, GroupInit, InitialVelocity, MirrorFace, SimError, World};
 use crate::physics::bonds::{lattice_number_density, max_lattice_neighbours, Bonds};
@@ -63,6 +64,23 @@ where
         loads: Vec<(String, Vec<u32>)>,
         gravity: GravityLaw<D>,
     ) -> Result<Self, SimError> {
+        Self::new_observed(l0, options, bodies, groups, loads, gravity, &Unobserved)
+    }
+
+    /// [`World::new`] with each stage timed and told to `observer` as it ends; at each stage
+    /// boundary the observer may stop the set-up, and so may the bound
+    /// `solver.max_setup_seconds` (checked from the bonds stage on with an estimate of the
+    /// whole set-up, then with the time taken).
+    pub fn new_observed(
+        l0: f64,
+        options: SolverOptions,
+        bodies: Vec<BodyInit<D>>,
+        groups: Vec<GroupInit>,
+        loads: Vec<(String, Vec<u32>)>,
+        gravity: GravityLaw<D>,
+        observer: &dyn SetupObserver,
+    ) -> Result<Self, SimError> {
+        let mut clock = SetupClock::new(observer, options.max_setup_seconds);
         let re = options.re_factor * l0;
         let mut p = Particles::<D> {
             x0: vec![],
@@ -175,6 +193,11 @@ where
         }
         let bonds = Bonds::try_build(&p.x0, &p.body, re, max_lattice_neighbours(D, l0, re))
             .map_err(|e| SimError::OutOfMemory(format!("cannot allocate the bonds: {e}")))?;
+        let bonds_seconds = clock.done(
+            SetupStage::Bonds,
+            &format!("{} bonds of {n} particles", bonds.len()),
+        )?;
+        clock.estimate(bonds.len(), bonds_seconds, &stage_costs(&options))?;
         p.n_ref = (0..n)
             .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
             .collect();
@@ -222,6 +245,12 @@ where
         let names: Vec<String> = gs.iter().map(|g| g.name.clone()).collect();
         let ghosts = find_ghosts(&p, l0, &group_of, &mirrors, &names, options.model)?;
         let (ghosts, followers, walls) = clamp_followers(&p, l0, &group_of, &mirrors, ghosts);
+        if !mirrors.is_empty() {
+            clock.done(
+                SetupStage::MirrorClamps,
+                &format!("{} ghosts, {} followers", ghosts.len(), followers.len()),
+            )?;
+        }
         for g in &ghosts {
             // A ghost follows its master: it is moved by nothing else.
             p.fix[g.ghost as usize] |= all_axes;
@@ -248,6 +277,10 @@ where
             &walls,
         );
         let mut op = op;
+        clock.done(
+            SetupStage::OperatorFits,
+            &format!("{} operator", options.model.name()),
+        )?;
         // The second-order operator's summation-by-parts closure at free faces (module `sbp`):
         // particle volumes (and masses) that integrate quadratics exactly and gradient weights
         // whose transpose passes the integration constraint.
@@ -279,6 +312,15 @@ where
                 }
             }
             closure = cl.report;
+            let closed = closure.iter().filter(|r| r.is_ok()).count();
+            clock.done(
+                SetupStage::Closure,
+                &format!(
+                    "{closed} of {} {} closed",
+                    closure.len(),
+                    if closure.len() == 1 { "body" } else { "bodies" }
+                ),
+            )?;
         }
         let mut load_of = vec![u32::MAX; n];
         let mut ls = Vec::new();
@@ -368,6 +410,10 @@ where
         };
         world.omega2_contact = c2;
         world.omega_max = (world.omega_elastic.powi(2) + c2).sqrt();
+        clock.done(
+            SetupStage::StableStep,
+            &format!("omega_max {:.4e} rad/s", world.omega_max),
+        )?;
         match world.update_forces() {
             Err(e @ SimError::Overlap { .. }) => {
                 return Err(SimError::Invalid(format!(
@@ -376,6 +422,35 @@ where
             }
             r => r?,
         }
+        clock.done(SetupStage::InitialForces, "")?;
         Ok(world)
+    }
+}
+
+/// Stage costs in bonds-stage seconds (see [`stage_costs`]): rough, for an estimate that
+/// refuses a set-up hours long, not one a few tens of percent over its bound. Measured with
+/// `mps run` on a loaded 2-core machine (BENCHMARKS.md, "Set-up stages": small3d at
+/// 0.00625 m, 18,944 particles: fits 5.7, stable step and initial forces 49 bonds-stage
+/// seconds), rounded up; the closure's cost is a guess (that body has a rigid grip, which
+/// keeps the plain fits: no closure).
+const SECOND_ORDER_FITS: f64 = 10.0;
+const SECOND_ORDER_CLOSURE: f64 = 60.0;
+const FIRST_ORDER_FITS: f64 = 5.0;
+const STABLE_STEP_COST: f64 = 50.0;
+
+/// The cost of the stages after the bonds, in bonds-stage seconds, for the estimate of the
+/// set-up's duration ([`SetupClock::estimate`]).
+fn stage_costs(options: &SolverOptions) -> StageCosts {
+    match options.model {
+        ElasticModel::SecondOrder => StageCosts {
+            fits: SECOND_ORDER_FITS,
+            closure: SECOND_ORDER_CLOSURE,
+            stable: STABLE_STEP_COST,
+        },
+        _ => StageCosts {
+            fits: FIRST_ORDER_FITS,
+            closure: 0.0,
+            stable: STABLE_STEP_COST,
+        },
     }
 }

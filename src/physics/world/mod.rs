@@ -8,12 +8,14 @@
 mod build;
 mod mirror;
 mod queries;
+mod setup;
 mod stable_step;
 mod state;
 mod step;
 
 pub use build::MIN_SPACING_BITS;
 pub use mirror::MirrorFace;
+pub use setup::{SetupObserver, SetupStage, Unobserved};
 pub use stable_step::{
     StableStepState, OMEGA_MARGIN, REFRESH_CHECK_EVERY, REFRESH_DEFORMATION, REFRESH_ITERATIONS,
     REFRESH_MIN_STEPS,
@@ -91,6 +93,15 @@ pub enum SimError {
     },
     #[error("out of memory: {0}")]
     OutOfMemory(String),
+    #[error("{what}, more than solver.max_setup_seconds = {limit} s; nothing was built (raise solver.max_setup_seconds to let it finish, or use a larger particle spacing)")]
+    SetupTooLong {
+        /// How long the set-up took or would take, and how that is known.
+        what: String,
+        /// solver.max_setup_seconds (s).
+        limit: f64,
+    },
+    #[error("the set-up was stopped {0}")]
+    Stopped(String),
 }
 
 /// The message of [`SimError::TooMuchWork`]: which limit the advance exceeds, its estimated

@@ -1,0 +1,147 @@
+//! Watching a world's set-up (World::new_observed): its stages, an observer told of each as it
+//! ends and asked at each stage boundary whether to go on, and the bound
+//! `solver.max_setup_seconds` on its wall-clock time. Physics knows nothing of where the
+//! messages go (the FMI logger, stderr) or why an observer stops a set-up (a host's
+//! fmi2CancelStep).
+use super::SimError;
+use std::time::Instant;
+
+/// The stages of a set-up, in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SetupStage {
+    /// The particles of the bodies (the scene's fill).
+    Particles,
+    /// The bonds: particle pairs closer than re (module `bonds`).
+    Bonds,
+    /// Mirror clamps: the ghosts and followers of mirror faces.
+    MirrorClamps,
+    /// The elastic operator's per-particle fits.
+    OperatorFits,
+    /// The second-order operator's summation-by-parts closure (module `sbp`).
+    Closure,
+    /// The first measurement of the stable step (power iteration for omega_max).
+    StableStep,
+    /// The forces of the initial state.
+    InitialForces,
+}
+
+impl SetupStage {
+    pub fn name(self) -> &'static str {
+        match self {
+            SetupStage::Particles => "particles",
+            SetupStage::Bonds => "bonds",
+            SetupStage::MirrorClamps => "mirror clamps",
+            SetupStage::OperatorFits => "operator fits",
+            SetupStage::Closure => "closure",
+            SetupStage::StableStep => "stable step",
+            SetupStage::InitialForces => "initial forces",
+        }
+    }
+}
+
+/// Watches a set-up: told of each stage as it ends, asked at each stage boundary whether to go
+/// on. Called on the thread that builds the world, between its parallel loops.
+pub trait SetupObserver {
+    /// `stage` has ended after `seconds` (wall clock); `detail` says what it made.
+    fn stage_done(&self, stage: SetupStage, seconds: f64, detail: &str) {
+        let _ = (stage, seconds, detail);
+    }
+    /// Some(why) stops the set-up at the next stage boundary (`SimError::Stopped`).
+    fn stop(&self) -> Option<String> {
+        None
+    }
+}
+
+/// An observer that watches nothing.
+pub struct Unobserved;
+impl SetupObserver for Unobserved {}
+
+/// Wall-clock cost of the stages after the bonds, as multiples of the bonds stage (which is
+/// measured first and sets the pace of the machine). Measured with `mps run` on 2 cores: see
+/// [`SetupClock::estimate`].
+pub(super) struct StageCosts {
+    /// Operator fits, per bonds-stage second.
+    pub fits: f64,
+    /// Summation-by-parts closure, per bonds-stage second (0 without it).
+    pub closure: f64,
+    /// Stable step and initial forces, per bonds-stage second.
+    pub stable: f64,
+}
+
+/// The clock of one set-up: times the stages, tells the observer, checks the bound.
+pub(super) struct SetupClock<'a> {
+    observer: &'a dyn SetupObserver,
+    start: Instant,
+    stage_start: Instant,
+    /// solver.max_setup_seconds.
+    limit: f64,
+}
+
+impl<'a> SetupClock<'a> {
+    pub(super) fn new(observer: &'a dyn SetupObserver, limit: f64) -> Self {
+        let now = Instant::now();
+        SetupClock {
+            observer,
+            start: now,
+            stage_start: now,
+            limit,
+        }
+    }
+
+    /// Seconds since the set-up started.
+    pub(super) fn elapsed(&self) -> f64 {
+        self.start.elapsed().as_secs_f64()
+    }
+
+    /// Ends `stage`: tells the observer what it made and how long it took, then asks whether
+    /// the set-up may go on (the observer's stop, the bound). Returns the stage's seconds.
+    pub(super) fn done(&mut self, stage: SetupStage, detail: &str) -> Result<f64, SimError> {
+        let seconds = self.stage_start.elapsed().as_secs_f64();
+        self.observer.stage_done(stage, seconds, detail);
+        if let Some(why) = self.observer.stop() {
+            return Err(SimError::Stopped(format!(
+                "after the {} stage ({:.1} s into the set-up): {why}",
+                stage.name(),
+                self.elapsed()
+            )));
+        }
+        let elapsed = self.elapsed();
+        if elapsed > self.limit {
+            return Err(SimError::SetupTooLong {
+                what: format!(
+                    "the set-up was stopped after {elapsed:.1} s, at the end of its {} stage",
+                    stage.name()
+                ),
+                limit: self.limit,
+            });
+        }
+        self.stage_start = Instant::now();
+        Ok(seconds)
+    }
+
+    /// After the bonds stage (`bonds_seconds`): the whole set-up's estimated duration from
+    /// the stage costs; refused before the expensive stages when it exceeds the bound.
+    pub(super) fn estimate(
+        &self,
+        bonds: usize,
+        bonds_seconds: f64,
+        costs: &StageCosts,
+    ) -> Result<(), SimError> {
+        // Below a millisecond the bonds stage's clock says little about the machine's pace;
+        // such a set-up is fast anyway.
+        let pace = bonds_seconds.max(1e-3);
+        let estimate = self.elapsed() + pace * (costs.fits + costs.closure + costs.stable);
+        if estimate > self.limit {
+            return Err(SimError::SetupTooLong {
+                what: format!(
+                    "the set-up would take about {estimate:.0} s (estimated from its first \
+                     stages: {bonds} bonds found in {bonds_seconds:.2} s, and the operator's fits, \
+                     closure and stable step cost about {:.0} times that)",
+                    costs.fits + costs.closure + costs.stable
+                ),
+                limit: self.limit,
+            });
+        }
+        Ok(())
+    }
+}

@@ -152,7 +152,7 @@ fn a_failed_write_leaves_no_partial_fmu_and_names_path_and_reason() {
     );
     let e = pack_fmu(&small2d(), &common::built_library(), &out.join("x.fmu")).unwrap_err();
     assert!(
-        e.contains("small2d.fmu") && e.contains("File exists (os error 17)"),
+        e.contains("small2d.fmu/x.fmu") && e.contains("Not a directory (os error 20)"),
         "{e}"
     );
     // Success writes exactly the FMU.

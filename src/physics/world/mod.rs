@@ -6,6 +6,7 @@
 //! `stable_step` (omega_max and its refresh), `mirror` (ghosts and followers of mirror faces),
 //! `state` (capture and restore), `queries` (energies, momenta, probes, fragments).
 mod build;
+pub mod faces;
 mod mirror;
 mod queries;
 mod stable_step;
@@ -66,6 +67,15 @@ pub enum SimError {
     },
     #[error("invalid input: {0}")]
     Invalid(String),
+    /// Invalid input of one boundary group (index `group` of the groups given), naming the
+    /// group's field at fault.
+    #[error("invalid input: group '{name}' ({field}): {message}")]
+    Boundary {
+        group: usize,
+        name: String,
+        field: String,
+        message: String,
+    },
     #[error("advancing to t = {t_end:e} s would take {steps} solver steps of dt = {dt:.4e} s, more than solver.max_steps = {limit}; nothing was done (use a shorter advance, a larger particle spacing or a softer/denser material, or raise solver.max_steps)")]
     TooMuchWork {
         /// Time the advance was asked to reach (s).
@@ -177,6 +187,11 @@ where
     frac_flag: Vec<u8>,
     scratch: ElasticScratch<D>,
     force: Vec<Vect<D>>,
+    /// The gravity (m/s^2) and the followers' load shares (N, per follower) with which the
+    /// followers' external forces were spread into `force` (its last evaluation): a step whose
+    /// inputs changed since (a co-simulation host setting gravity or loads) spreads the
+    /// difference first.
+    follower_inputs: (Vect<D>, Vec<Vect<D>>),
     torque: Vec<<Space as Dim<D>>::Ang>,
     group_of: Vec<u32>,
     load_of: Vec<u32>,
@@ -185,6 +200,10 @@ where
     /// (module `sbp`: the solve's figures) or why the body keeps the plain fits. Empty for
     /// the other operators.
     pub closure: Vec<Result<String, String>>,
+    /// Second-order operator: per clamped group without a mirror face (all axes held), its
+    /// face from the geometry with followers (Ok), or why it keeps the rigid grip (module
+    /// `faces`). Empty for the other operators.
+    pub clamp_faces: Vec<(usize, Result<(), String>)>,
 }
 
 impl<const D: usize> World<D>

@@ -186,6 +186,9 @@ where
     }
 }
 
+/// Per eligible group: the number of its followers, or why it keeps the rigid grip.
+pub(super) type ClampReport = Vec<(usize, Result<usize, String>)>;
+
 /// Followers of the clamped groups without a mirror face (`eligible[g]`: all axes held), group
 /// by group; a group whose followers would chain with another's (a particle at two clamped
 /// faces, or a body thinner than 4 layers between two) keeps the grip. Returns the followers
@@ -197,7 +200,7 @@ pub(super) fn infer_clamp_followers<const D: usize>(
     group_of: &[u32],
     eligible: &[bool],
     taken: &[Follower],
-) -> (Vec<Follower>, Vec<(usize, Result<usize, String>)>)
+) -> (Vec<Follower>, ClampReport)
 where
     Space: Dim<D>,
 {

@@ -451,9 +451,13 @@ fn normal_sequence_2d_with_prescribed_motion_and_load() {
     let ux = i.real(&[tip_ux])[0];
     assert!(ux > 0.0 && ux < 0.003, "tip ux {ux}");
     let uy = i.real(&[mid_uy])[0];
-    // (not exactly 0: the probe sits between particles and is interpolated from one side)
+    // Not exactly 0: the probe sits on the axis between two rows of particles and is
+    // interpolated from one side, from a fit of the Poisson contraction (antisymmetric in y,
+    // -7e-5 m at the rows beside the axis, symmetric to 5e-9 relative). With the holder's face
+    // found from the geometry (issue 24) the default operator reads 1.45 % of the tip's ux
+    // there (the rigid grip before: below 1 %); bending under gravity would be 30 times that.
     assert!(
-        uy.abs() < 1e-2 * ux,
+        uy.abs() < 2e-2 * ux,
         "no gravity, no load: no bending (mid uy {uy}, tip ux {ux})"
     );
     assert_eq!(i.set(&[fy], &[-5.0]), OK);

@@ -94,6 +94,92 @@ where
     Ok(InitialVelocity::PerParticle { v, w })
 }
 
+/// Warnings where the second-order operator's accuracy is reduced (issue 24), in the scene's
+/// terms: which body or clamp, the estimated effect at its resolution, and what to change.
+/// The estimates are measured (`mps study family`, docs/model.md "Clamps from the geometry"): a
+/// clamp held as a rigid block makes a cantilever's static deflection about 9.5 / n % too large
+/// at n particles through it (+2.2 / +2.4 % at 4, +1.2 % at 8 in 2D and 3D), its first frequency
+/// about half that too low; a body whose free faces are first order (a union of boxes: the
+/// stepped cantilever, the L-bracket, the plate with a hole) about 25 / n^2 % too large in
+/// static deflection (+1.1 to +1.7 % at 4, +0.31 to +0.52 % at 8) and 12 / n^2 % too low in f1.
+fn accuracy_warnings<const D: usize>(
+    scene: &Scene,
+    world: &World<D>,
+    through: &[usize],
+    earlier: &[SceneWarning],
+) -> Vec<SceneWarning>
+where
+    Space: Dim<D>,
+{
+    let mut out = Vec::new();
+    for (g, r) in &world.clamp_faces {
+        let Err(why) = r else { continue };
+        if why.starts_with("it touches no free particle") {
+            continue;
+        }
+        let b = &scene.boundaries[*g];
+        let k = scene.body_index(&b.body).expect("validated");
+        let n = through[k];
+        let remedy = if why.contains("less than") {
+            "make the body deeper behind the clamped face (at least 4 particles: a smaller particle_spacing), or clamp a thicker part"
+        } else {
+            "let the region hold the layers behind one plane face of the body only (a region per face does not help where two clamped faces meet at an edge)"
+        };
+        out.push(SceneWarning {
+            field: format!("boundaries[{g}] ('{}')", b.name),
+            message: format!(
+                "clamp '{}' is held as a rigid block ({why}); body '{}' is then too flexible next to it: a cantilever's static deflection about {:.1} % too large and its first frequency about {:.1} % too low at {n} particles through '{}'; to fix it, {remedy}",
+                b.name,
+                b.body,
+                9.5 / n as f64,
+                4.75 / n as f64,
+                b.body
+            ),
+        });
+    }
+    for (k, r) in world.closure.iter().enumerate() {
+        let Err(why) = r else { continue };
+        // A body already warned of as under-resolved gets no second warning: its geometry is
+        // the cause, and refining it is the remedy of both.
+        let field = super::body_field(k, &scene.bodies[k]);
+        let prefix = format!("bodies[{k}]");
+        if earlier.iter().any(|w| {
+            w.field
+                .strip_prefix(&prefix)
+                .is_some_and(|rest| rest.is_empty() || rest.starts_with(' '))
+        }) {
+            continue;
+        }
+        let name = &scene.bodies[k].name;
+        let n = through[k];
+        let (what, remedy) = if why.contains("rigid grip") {
+            (
+                "a clamp held as a rigid block".to_string(),
+                "see the clamp's own warning".to_string(),
+            )
+        } else if why.contains("filled box") || why.contains("one lattice") {
+            (
+                "it is not a single box".to_string(),
+                "the error falls as the square of the particle spacing: halve particle_spacing for a quarter of it (a body of one box has no such error)".to_string(),
+            )
+        } else {
+            (
+                why.trim_start_matches("it ").to_string(),
+                "a smaller particle_spacing reduces it".to_string(),
+            )
+        };
+        out.push(SceneWarning {
+            field,
+            message: format!(
+                "the stresses at the free faces of body '{name}' are computed to first order only ({what}): it bends too easily, its static deflection about {:.1} % too large and its first frequency about {:.1} % too low at {n} particles through '{name}'; {remedy}",
+                25.0 / (n * n) as f64,
+                12.0 / (n * n) as f64
+            ),
+        });
+    }
+    out
+}
+
 fn vect<const D: usize>(v: &[f64]) -> Vect<D> {
     Vect::<D>::from_fn(|k, _| v.get(k).copied().unwrap_or(0.0))
 }
@@ -125,12 +211,14 @@ where
         let mut ranges = Vec::new();
         let mut count = 0usize;
         let mut warnings = Vec::new();
+        let mut box_ofs = Vec::new();
         for (k, b) in scene.bodies.iter().enumerate() {
             let (pts, box_of) = body_points::<D>(scene, k)?;
             warnings.extend(super::resolution::body_warnings::<D>(
                 scene, k, &pts, &box_of,
             ));
             let velocity = initial_velocity::<D>(scene, k, &pts)?;
+            box_ofs.push(box_of);
             ranges.push(count..count + pts.len());
             count += pts.len();
             bodies.push(BodyInit {
@@ -201,6 +289,39 @@ where
                 )?,
             ));
         }
+        // Particles through the thinnest section of each body: the smallest extent, over the
+        // particle spacing, of its boxes that hold a particle of no boundary group.
+        let through: Vec<usize> = {
+            let mut held = vec![false; count];
+            for g in &groups {
+                for &m in &g.members {
+                    held[m as usize] = true;
+                }
+            }
+            (0..scene.bodies.len())
+                .map(|k| {
+                    let free_box: std::collections::HashSet<u32> = box_ofs[k]
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| !held[ranges[k].start + i])
+                        .map(|(_, b)| *b)
+                        .collect();
+                    scene.bodies[k]
+                        .boxes
+                        .iter()
+                        .enumerate()
+                        .filter(|(j, _)| free_box.contains(&(*j as u32)))
+                        .flat_map(|(_, r)| {
+                            r.min
+                                .iter()
+                                .zip(&r.max)
+                                .map(|(a, b)| ((b - a) / dp).round())
+                        })
+                        .fold(f64::INFINITY, f64::min)
+                        .clamp(1.0, 1e9) as usize
+                })
+                .collect()
+        };
         let g = if scene.gravity.vector.is_empty() {
             Vect::<D>::zeros()
         } else {
@@ -226,27 +347,15 @@ where
         )
         .map_err(|e| match e {
             SimError::SetupTooLong { .. } => err("solver.max_setup_seconds", e.to_string()),
+            SimError::Boundary {
+                group,
+                name,
+                field,
+                message,
+            } => err(format!("boundaries[{group}] ('{name}').{field}"), message),
             e => err("scene", e.to_string()),
         })?;
-        for (k, r) in world.closure.iter().enumerate() {
-            // A body already warned of as under-resolved gets no second warning: its geometry
-            // is the cause, and refining it is the remedy of both.
-            let field = format!("bodies[{k}]");
-            let resolved = !warnings.iter().any(|w: &SceneWarning| {
-                w.field
-                    .strip_prefix(&field)
-                    .is_some_and(|rest| rest.is_empty() || rest.starts_with(' '))
-            });
-            if let (Err(why), true) = (r, resolved) {
-                warnings.push(SceneWarning {
-                    field,
-                    message: format!(
-                        "second_order keeps its plain fits at the free faces of body '{}' ({why}): its summation-by-parts closure needs a body that fills one lattice box (with its mirror images), so there the particle quadrature of the weak form is first order (docs/model.md, \"Free faces\")",
-                        scene.bodies[k].name
-                    ),
-                });
-            }
-        }
+        warnings.extend(accuracy_warnings(scene, &world, &through, &warnings));
         let mut probes = Vec::new();
         for (k, p) in scene.probes.iter().enumerate() {
             let point = vect::<D>(&p.point);

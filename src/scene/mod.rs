@@ -415,6 +415,17 @@ impl Scene {
                 if m.normal.iter().all(|c| *c == 0.0) {
                     return Err(err(format!("{f}.mirror.normal"), "must not be zero"));
                 }
+                // The bodies are boxes on an axis-aligned lattice: a face is normal to an axis.
+                if m.normal.iter().filter(|c| **c != 0.0).count() > 1 {
+                    return Err(err(
+                        format!("{f}.mirror.normal"),
+                        format!(
+                            "{:?} is oblique; a mirror face is a face of the body's boxes, normal to x, y or z (e.g. [-1, 0{}] for a face whose outside is towards -x)",
+                            m.normal,
+                            if d == 3 { ", 0" } else { "" }
+                        ),
+                    ));
+                }
                 if self.solver.model != crate::physics::ElasticModel::SecondOrder {
                     return Err(err(
                         format!("{f}.mirror"),
@@ -433,6 +444,18 @@ impl Scene {
                             format!("'{a}' is not an axis of a {d}D scene"),
                         ));
                     }
+                }
+                // A clamp holds every axis: a shorter list would be ignored.
+                let held = (0..d)
+                    .filter(|&i| axes.iter().any(|a| axis_index(a) == Some(i)))
+                    .count();
+                if g.kind == BoundaryKind::Clamped && held < d {
+                    return Err(err(
+                        format!("{f}.axes"),
+                        format!(
+                            "a clamped group holds every axis, so {axes:?} would be ignored; remove axes, or use kind \"pinned\" (the listed axes held, the rest free) or \"prescribed\" (the listed axes moved from outside)"
+                        ),
+                    ));
                 }
             }
         }

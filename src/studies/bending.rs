@@ -225,6 +225,8 @@ pub struct LinearBending {
     pub products: u64,
     /// Wall time (s).
     pub wall: f64,
+    /// The scene's warnings (field: message).
+    pub warnings: Vec<String>,
 }
 
 /// Linearised first frequency and static tip deflection under the scene's gravity.
@@ -254,6 +256,11 @@ pub fn linear_bending(scene: &Scene) -> Result<LinearBending, SceneError> {
                 tip,
                 products,
                 wall: t0.elapsed().as_secs_f64(),
+                warnings: model
+                    .warnings
+                    .iter()
+                    .map(|w| format!("{}: {}", w.field, w.message))
+                    .collect(),
             }
         }};
     }

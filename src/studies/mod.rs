@@ -6,6 +6,7 @@ pub mod bench;
 pub mod bending;
 pub mod case3;
 pub mod cases;
+pub mod family;
 pub mod linear;
 pub mod programs;
 pub mod report;

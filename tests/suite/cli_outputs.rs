@@ -63,15 +63,9 @@ fn energy_series_is_written_with_energy() {
     v["output_interval"] = 0.002.into();
     let (ok, stdout, stderr) = run(&d, &v, &["--energy"]);
     assert!(ok, "{stdout}\n{stderr}");
-    // The one warning: the default operator's note that the holder (a rigid grip) leaves the
-    // strip's faces without the summation-by-parts closure; nothing is under-resolved.
-    assert!(
-        stderr
-            .lines()
-            .filter(|l| l.contains("warning"))
-            .all(|l| l.contains("summation-by-parts closure")),
-        "{stderr}"
-    );
+    // No warning: the holder's face is found from the geometry (issue 24), so the strip has
+    // the default operator's full accuracy, and nothing is under-resolved.
+    assert!(!stderr.contains("warning"), "{stderr}");
     assert!(stdout.contains("energies written to"), "{stdout}");
     let (head, rows) = csv(&d.join("o/energy.csv"));
     assert_eq!(
@@ -132,16 +126,31 @@ fn no_energy_file_without_the_flag_and_summary_lists_warnings() {
     assert!(!d.join("o/energy.csv").exists());
     let summary: Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("o/summary.json")).unwrap()).unwrap();
-    // small2d is well resolved; its holder is a rigid grip, so the default operator notes that
-    // the strip keeps its plain fits (the note is in the summary, with its field).
+    // small2d is well resolved and its holder's face is found from the geometry (issue 24): no
+    // warning, and the summary says so with an empty list.
     let w = summary["warnings"].as_array().unwrap();
-    assert_eq!(w.len(), 1, "{w:?}");
-    assert_eq!(w[0]["field"], "bodies[0]");
+    assert!(w.is_empty(), "{w:?}");
+    // A holder that wraps the strip's end (its first column's top particle held as well) keeps
+    // the rigid block: the summary lists the warning with its field, in the scene's terms.
+    let d = scratch("wrapwarn");
+    let mut v = load("tests/data/small2d.json");
+    v["end_time"] = 0.004.into();
+    v["boundaries"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "name": "cap", "kind": "clamped", "body": "strip",
+                      "region": { "min": [0.0, 0.0375], "max": [0.0125, 0.05] } }));
+    let (ok, stdout, stderr) = run(&d, &v, &[]);
+    assert!(ok, "{stdout}\n{stderr}");
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/summary.json")).unwrap()).unwrap();
+    let w = summary["warnings"].as_array().unwrap();
     assert!(
-        w[0]["message"]
-            .as_str()
-            .unwrap()
-            .contains("it has a rigid grip"),
+        w.iter().any(|w| w["field"] == "boundaries[0] ('holder')"
+            && w["message"]
+                .as_str()
+                .unwrap()
+                .contains("held as a rigid block")),
         "{w:?}"
     );
 }

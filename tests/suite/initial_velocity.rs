@@ -231,11 +231,12 @@ fn mode_shape_and_table_give_their_velocities_at_the_particles() {
     }));
     let scene = Scene::from_json(&v.to_string()).unwrap();
     let m = Model::<2>::build(&scene).unwrap();
-    // Well resolved; the only note is that the clamp (a grip) leaves the plate its plain fits.
+    // Well resolved; the clamp's face is found from the geometry (issue 24): no warning of
+    // reduced accuracy.
     assert!(
         m.warnings
             .iter()
-            .all(|w| w.message.contains("summation-by-parts closure")),
+            .all(|w| !w.field.starts_with("boundaries") && !w.message.contains("first order")),
         "{:?}",
         m.warnings
     );

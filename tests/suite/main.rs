@@ -5,6 +5,7 @@
 mod bending_accuracy;
 mod c_abi;
 mod case3_short;
+mod clamp_faces;
 mod cli_errors;
 mod cli_outputs;
 mod cli_reliability;

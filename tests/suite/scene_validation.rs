@@ -824,3 +824,87 @@ fn a_scene_that_names_no_operator_gets_second_order_with_its_closure() {
     let c = Scene::from_json(&v.to_string()).unwrap();
     assert_eq!(c.solver.model, ElasticModel::Corrected);
 }
+
+/// A `mirror` field that holds nothing is refused, naming the field and what is wrong (issue
+/// 27, item 4). Before, each of these ran (exit 0): an oblique normal, a point off the body's
+/// face (the body then fell freely), a mirror group in the middle of a beam, a point half a
+/// cell or a cell off the face (only some wall layers became images: the tip 4.5 % off), `axes`
+/// on a clamp (ignored), and two groups over the same particles (a misleading "no member is
+/// the mirror image" about the first).
+#[test]
+fn mirror_faces_that_hold_nothing_are_refused() {
+    use mps_solid::studies::bending::plate2d_scene;
+    let base = || -> serde_json::Value {
+        serde_json::from_str(&plate2d_scene(4, ElasticModel::SecondOrder).to_json()).unwrap()
+    };
+    let dp = 0.005;
+    type Edit = Box<dyn Fn(&mut serde_json::Value)>;
+    let cases: Vec<(&str, Edit, &[&str])> = vec![
+        (
+            "an oblique normal",
+            Box::new(|v| v["boundaries"][0]["mirror"]["normal"] = serde_json::json!([-1, 1])),
+            &["boundaries[0] ('clamp').mirror.normal: [-1.0, 1.0] is oblique"],
+        ),
+        (
+            "a point off the body's face",
+            Box::new(|v| v["boundaries"][0]["mirror"]["point"] = serde_json::json!([0.1, 0])),
+            &[
+                "boundaries[0] ('clamp').mirror: the point [0.1, 0.0] is 0.1 m",
+                "off the face between the group and its body, which is at x = 0 m",
+            ],
+        ),
+        (
+            "a point half a cell off",
+            Box::new(move |v| {
+                v["boundaries"][0]["mirror"]["point"] = serde_json::json!([-0.5 * dp, 0])
+            }),
+            &["(0.500 particle spacings) off the face", "at x = 0 m"],
+        ),
+        (
+            "a point a cell off",
+            Box::new(move |v| {
+                v["boundaries"][0]["mirror"]["point"] = serde_json::json!([-dp, 0])
+            }),
+            &["(1.000 particle spacings) off the face"],
+        ),
+        (
+            "a mirror group in the middle of the beam",
+            Box::new(move |v| {
+                let mut g = v["boundaries"][0].clone();
+                g["name"] = "middle".into();
+                g["region"] = serde_json::json!({"min": [0.1, -0.01], "max": [0.1 + 3.0 * dp, 0.01]});
+                g["mirror"] = serde_json::json!({"point": [0.1, 0], "normal": [1, 0]});
+                v["boundaries"].as_array_mut().unwrap().push(g);
+            }),
+            &[
+                "boundaries[1] ('middle').mirror: the group has free particles of its body on both sides",
+                "x = 0.1 m",
+            ],
+        ),
+        (
+            "axes on a mirror clamp",
+            Box::new(|v| v["boundaries"][0]["axes"] = serde_json::json!(["x"])),
+            &["boundaries[0] ('clamp').axes: a clamped group holds every axis"],
+        ),
+        (
+            "two identical mirror groups",
+            Box::new(|v| {
+                let mut g = v["boundaries"][0].clone();
+                g["name"] = "clamp2".into();
+                v["boundaries"].as_array_mut().unwrap().push(g);
+            }),
+            &["boundaries[1] ('clamp2').region: it selects particles that group 'clamp' holds too"],
+        ),
+    ];
+    for (what, edit, expected) in cases {
+        let mut v = base();
+        edit(&mut v);
+        let e = error_of(v);
+        for part in expected {
+            assert!(e.contains(part), "{what}: expected {part:?} in: {e}");
+        }
+    }
+    // The untouched scene (its mirror face right) runs.
+    let s = Scene::from_json(&base().to_string()).unwrap();
+    assert!(Simulation::new(&s).is_ok());
+}

@@ -1,6 +1,7 @@
 //! Construction of a world: World::new (particles, bonds, groups and mirror faces, the
 //! operators and the summation-by-parts closure, the first measurement of the stable step)
 //! and the checks of its input.
+use super::faces::{check_mirror, group_faces, infer_clamp_followers};
 use super::mirror::{clamp_followers, find_ghosts};
 use super::setup::{SetupClock, SetupObserver, SetupStage, StageCosts, Unobserved};
 use super::stable_step::{StableStepState, OMEGA_MARGIN};
@@ -206,7 +207,11 @@ where
         let mut group_of = vec![u32::MAX; n];
         let mut gs = Vec::new();
         let mut mirrors: Vec<(usize, MirrorFace, [bool; 3])> = Vec::new();
+        let mut mirrored: Vec<bool> = Vec::new();
+        let mut group_names: Vec<String> = Vec::new();
         for (gi, g) in groups.into_iter().enumerate() {
+            mirrored.push(g.mirror.is_some());
+            group_names.push(g.name.clone());
             for &i in &g.members {
                 let i = i as usize;
                 if i >= n {
@@ -214,6 +219,24 @@ where
                         "group '{}' names particle {i} of {n}",
                         g.name
                     )));
+                }
+                // A mirror group's members are ghosts or walls of its face alone: a particle
+                // that another group holds too would be claimed twice.
+                let other = group_of[i];
+                if other != u32::MAX
+                    && other != gi as u32
+                    && (g.mirror.is_some() || mirrored[other as usize])
+                {
+                    return Err(SimError::Boundary {
+                        group: gi,
+                        name: g.name.clone(),
+                        field: "region".into(),
+                        message: format!(
+                            "it selects particles that group '{}' holds too (e.g. the particle at {:?} m), and one of the two has a mirror face, whose layers must be its own; remove the duplicate group or make the regions disjoint",
+                            group_names[other as usize],
+                            p.x0[i].as_slice()
+                        ),
+                    });
                 }
                 group_of[i] = gi as u32;
                 // A held axis starts at rest (its motion law has no rate at t = 0), as does a
@@ -243,9 +266,56 @@ where
         }
         let all_axes: u8 = FIX_AXIS.iter().take(D).fold(0, |a, b| a | b);
         let names: Vec<String> = gs.iter().map(|g| g.name.clone()).collect();
+        if options.model == ElasticModel::SecondOrder {
+            // A mirror face must be the face between the group and its body.
+            for &(gi, face, _) in &mirrors {
+                let found = group_faces(&p, &bonds, l0, &group_of, gi as u32);
+                let point = Vect::<D>::from_fn(|k, _| face.point[k]);
+                let normal = Vect::<D>::from_fn(|k, _| face.normal[k]);
+                check_mirror(&found, &point, &normal, l0).map_err(|message| {
+                    SimError::Boundary {
+                        group: gi,
+                        name: names[gi].clone(),
+                        field: "mirror".into(),
+                        message,
+                    }
+                })?;
+            }
+        }
         let ghosts = find_ghosts(&p, l0, &group_of, &mirrors, &names, options.model)?;
-        let (ghosts, followers, walls) = clamp_followers(&p, l0, &group_of, &mirrors, ghosts);
-        if !mirrors.is_empty() {
+        let (ghosts, mut followers, mut walls) =
+            clamp_followers(&p, l0, &group_of, &mirrors, ghosts);
+        // Clamps written without a mirror face (issue 24): the face between the group and its
+        // body from the geometry, and the followers there (module `faces`).
+        let mut clamp_faces = Vec::new();
+        if options.model == ElasticModel::SecondOrder {
+            let eligible: Vec<bool> = gs
+                .iter()
+                .zip(&mirrored)
+                .map(|(g, m)| !m && g.axes.iter().take(D).all(|&a| a) && !g.members.is_empty())
+                .collect();
+            let (inferred, report) =
+                infer_clamp_followers(&p, &bonds, l0, &group_of, &eligible, &followers);
+            if !inferred.is_empty() {
+                if walls.is_empty() {
+                    walls = vec![false; n];
+                }
+                for (g, r) in &report {
+                    if r.is_ok() {
+                        for &m in &gs[*g].members {
+                            walls[m as usize] = true;
+                        }
+                    }
+                }
+                followers.extend(inferred);
+                followers.sort_by_key(|f| f.particle);
+            }
+            clamp_faces = report
+                .into_iter()
+                .map(|(g, r)| (g, r.map(|_| ())))
+                .collect();
+        }
+        if !mirrors.is_empty() || !followers.is_empty() {
             clock.done(
                 SetupStage::MirrorClamps,
                 &format!("{} ghosts, {} followers", ghosts.len(), followers.len()),
@@ -379,11 +449,13 @@ where
             frac_flag: Vec::new(),
             scratch: ElasticScratch::default(),
             force: vec![Vect::<D>::zeros(); n],
+            follower_inputs: (Vect::<D>::zeros(), Vec::new()),
             torque: vec![<Space as Dim<D>>::ang_zero(); n],
             group_of,
             load_of,
             bad: vec![0; n],
             closure,
+            clamp_faces,
         };
         // The Rayleigh quotient of the power iteration approaches omega_max^2 from below: in 3D
         // 80 iterations leave it ~0.5 % short in omega, and the current configuration (large

@@ -6,6 +6,7 @@
 //! `stable_step` (omega_max and its refresh), `mirror` (ghosts and followers of mirror faces),
 //! `state` (capture and restore), `queries` (energies, momenta, probes, fragments).
 mod build;
+pub mod faces;
 mod mirror;
 mod queries;
 mod setup;
@@ -68,6 +69,15 @@ pub enum SimError {
     },
     #[error("invalid input: {0}")]
     Invalid(String),
+    /// Invalid input of one boundary group (index `group` of the groups given), naming the
+    /// group's field at fault.
+    #[error("invalid input: group '{name}' ({field}): {message}")]
+    Boundary {
+        group: usize,
+        name: String,
+        field: String,
+        message: String,
+    },
     #[error("{}", work_refusal(*t_end, *steps, *dt, *particles, *limit, *max_particle_steps, *wall_estimate_s))]
     TooMuchWork {
         /// Time the advance was asked to reach (s).
@@ -270,6 +280,11 @@ where
     frac_flag: Vec<u8>,
     scratch: ElasticScratch<D>,
     force: Vec<Vect<D>>,
+    /// The gravity (m/s^2) and the followers' load shares (N, per follower) with which the
+    /// followers' external forces were spread into `force` (its last evaluation): a step whose
+    /// inputs changed since (a co-simulation host setting gravity or loads) spreads the
+    /// difference first.
+    follower_inputs: (Vect<D>, Vec<Vect<D>>),
     torque: Vec<<Space as Dim<D>>::Ang>,
     group_of: Vec<u32>,
     load_of: Vec<u32>,
@@ -278,6 +293,10 @@ where
     /// (module `sbp`: the solve's figures) or why the body keeps the plain fits. Empty for
     /// the other operators.
     pub closure: Vec<Result<String, String>>,
+    /// Second-order operator: per clamped group without a mirror face (all axes held), its
+    /// face from the geometry with followers (Ok), or why it keeps the rigid grip (module
+    /// `faces`). Empty for the other operators.
+    pub clamp_faces: Vec<(usize, Result<(), String>)>,
 }
 
 impl<const D: usize> World<D>

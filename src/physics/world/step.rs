@@ -61,28 +61,17 @@ where
         // and contact forces act through the constraint (on the layers they follow and the
         // clamp). Their elastic forces took that path in the operator.
         if !self.op.second.followers.is_empty() {
-            let g = self.gravity.at(self.time);
-            let (p, loads, load_of) = (&self.p, &self.loads, &self.load_of);
-            let time = self.time;
-            let ext: Vec<Vect<D>> = self
-                .op
-                .second
+            let (g, loads) = self.follower_external_inputs(self.time);
+            let so = &self.op.second;
+            let force = &self.force;
+            let ext: Vec<Vect<D>> = so
                 .followers
                 .iter()
-                .map(|fl| {
-                    let i = fl.particle as usize;
-                    let mut e = self.force[i];
-                    let l = load_of[i];
-                    if l != u32::MAX {
-                        let r = &loads[l as usize];
-                        e += r.force_at(time) / (r.members.len().max(1) as f64);
-                    }
-                    e
-                })
+                .zip(&loads)
+                .map(|(fl, l)| force[fl.particle as usize] + l)
                 .collect();
-            let so = &self.op.second;
             so.spread_to_followed(
-                &p.mass,
+                &self.p.mass,
                 g,
                 |i| ext[so.followers.partition_point(|f| (f.particle as usize) < i)],
                 &mut self.force,
@@ -90,6 +79,7 @@ where
             for fl in &so.followers {
                 self.force[fl.particle as usize] = Vect::<D>::zeros();
             }
+            self.follower_inputs = (g, loads);
         }
         for g in &mut self.groups {
             let mut sum = Vect::<D>::zeros();
@@ -218,6 +208,49 @@ where
             .bonds_broken(&self.bonds, &self.p.body, &touched);
     }
 
+    /// Gravity at time t and each follower's share of its load region's force at t: the
+    /// external inputs that reach the followers.
+    fn follower_external_inputs(&self, t: f64) -> (Vect<D>, Vec<Vect<D>>) {
+        let loads = self
+            .op
+            .second
+            .followers
+            .iter()
+            .map(|fl| match self.load_of[fl.particle as usize] {
+                u32::MAX => Vect::<D>::zeros(),
+                l => {
+                    let r = &self.loads[l as usize];
+                    r.force_at(t) / (r.members.len().max(1) as f64)
+                }
+            })
+            .collect();
+        (self.gravity.at(t), loads)
+    }
+
+    /// The followers' external forces in `force` were spread with the inputs of the last
+    /// force evaluation; if gravity or a load changed since (set between steps), spreads the
+    /// difference (the spread is linear in both), so that the step sees the inputs it applies
+    /// to the other particles.
+    fn respread_follower_inputs(&mut self, t: f64) {
+        if self.op.second.followers.is_empty() {
+            return;
+        }
+        let (g, loads) = self.follower_external_inputs(t);
+        let (g0, loads0) = &self.follower_inputs;
+        if g == *g0 && loads == *loads0 {
+            return;
+        }
+        let so = &self.op.second;
+        let delta: Vec<Vect<D>> = loads.iter().zip(loads0).map(|(a, b)| a - b).collect();
+        so.spread_to_followed(
+            &self.p.mass,
+            g - g0,
+            |i| delta[so.followers.partition_point(|f| (f.particle as usize) < i)],
+            &mut self.force,
+        );
+        self.follower_inputs = (g, loads);
+    }
+
     /// Moves the followers of clamped faces to their constraint (displacement and velocity).
     pub(super) fn sync_followers(&mut self) {
         let p = &mut self.p;
@@ -241,6 +274,7 @@ where
             )));
         }
         let t = self.time;
+        self.respread_follower_inputs(t);
         let group_disp: Vec<(Vect<D>, Vect<D>)> = self
             .groups
             .iter()

@@ -2,7 +2,9 @@
 //! faces (module `physics::sbp`) for the paper's cases 1 and 2 and the bending benchmarks: per
 //! body the solve's iterations, residuals, largest correction and wall time, or why a body
 //! keeps its plain fits. `cargo run --release -- study closure`; `-- cube N` reports a
-//! free cube of N^3 particles instead (the bulky body whose build is the slowest).
+//! free cube of N^3 particles instead (the bulky body whose build is the slowest), with
+//! CLAMP=1 one face clamped by 3 wall layers behind it (no mirror field), with
+//! CORRECTED=1 the corrected operator's build for comparison.
 use crate::physics::ElasticModel;
 use crate::scene::{Model, Scene};
 use crate::studies::bending::{cantilever3d_scene, plate2d_scene};
@@ -21,22 +23,35 @@ where
     }
 }
 
-/// A free cube of n^3 particles at dp 0.1 m, second_order (the default operator).
-fn cube_scene(n: usize) -> Scene {
+/// A free cube of n^3 particles at dp 0.1 m, second_order (the default operator); `clamped`:
+/// with 3 wall layers behind its face x = 0 in a clamped region (written as a user would).
+fn cube_scene(n: usize, clamped: bool, model: ElasticModel) -> Scene {
     let side = 0.1 * n as f64;
-    serde_json::from_value(serde_json::json!({
+    let mut boxes = vec![serde_json::json!({"min": [0.0, 0.0, 0.0], "max": [side, side, side]})];
+    let mut boundaries = vec![];
+    if clamped {
+        boxes.push(serde_json::json!({"min": [-0.3, 0.0, 0.0], "max": [0.0, side, side]}));
+        boundaries.push(
+            serde_json::json!({"name": "clamp", "kind": "clamped", "body": "cube",
+            "region": {"min": [-0.3, 0.0, 0.0], "max": [-0.01, side, side]}}),
+        );
+    }
+    let mut s: Scene = serde_json::from_value(serde_json::json!({
         "name": format!("cube{n}"),
         "dimension": 3,
         "particle_spacing": 0.1,
         "bodies": [{
             "name": "cube",
             "material": {"density": 1000.0, "young": 1e6, "poisson": 0.3},
-            "boxes": [{"min": [0.0, 0.0, 0.0], "max": [side, side, side]}]
+            "boxes": boxes
         }],
+        "boundaries": boundaries,
         "end_time": 0.001,
         "output_interval": 0.001
     }))
-    .expect("cube scene")
+    .expect("cube scene");
+    s.solver.model = model;
+    s
 }
 
 pub fn main(args: Vec<String>) {
@@ -44,7 +59,16 @@ pub fn main(args: Vec<String>) {
     if args.first().map(String::as_str) == Some("cube") {
         let n = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(20);
         let t = std::time::Instant::now();
-        report::<3>(&format!("cube {n}^3"), &cube_scene(n));
+        let clamped = std::env::var("CLAMP").is_ok();
+        let model = if std::env::var("CORRECTED").is_ok() {
+            ElasticModel::Corrected
+        } else {
+            ElasticModel::SecondOrder
+        };
+        report::<3>(
+            &format!("cube {n}^3{}", if clamped { ", clamped face" } else { "" }),
+            &cube_scene(n, clamped, model),
+        );
         println!("build {:.1} s", t.elapsed().as_secs_f64());
         return;
     }

@@ -64,13 +64,16 @@ pub struct RunOptions {
 }
 
 /// What a run reports while it runs.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy)]
 pub enum RunEvent<'a> {
     /// The scene was built and will run; a warning of under-resolved geometry (before the
     /// first step).
     Warning(&'a SceneWarning),
     /// An output sample at this time (s) was taken.
     Sample(f64),
+    /// The simulation at an output sample (the initial state first, then after each `Sample`):
+    /// for output that needs more than the probes (`mps run --surface`).
+    State(&'a Simulation),
 }
 
 /// Result of a run; `error` is set when the solver stopped early (the series keeps what was
@@ -238,6 +241,7 @@ pub fn run_scene_with(
         }
     };
     sample(&sim, &mut series);
+    on_event(RunEvent::State(&sim));
     let start = Instant::now();
     let n_out = (scene.end_time / scene.output_interval - 1e-9)
         .ceil()
@@ -255,6 +259,7 @@ pub fn run_scene_with(
         }
         sample(&sim, &mut series);
         on_event(RunEvent::Sample(t));
+        on_event(RunEvent::State(&sim));
     }
     let wall = start.elapsed().as_secs_f64();
     let (mut frequency_hz, mut peak_m) = (None, None);

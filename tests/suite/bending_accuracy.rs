@@ -192,6 +192,7 @@ fn second_order_forces_are_the_energy_gradient() {
             },
             points: pts.clone(),
             velocity: Vect::<3>::zeros().into(),
+            shape: None,
         }],
         vec![GroupInit {
             name: "clamp".into(),
@@ -267,6 +268,7 @@ fn forces_are_the_energy_gradient_with_mirror_faces() {
             },
             points: pts.clone(),
             velocity: Vect::<3>::zeros().into(),
+            shape: None,
         }],
         vec![
             GroupInit {

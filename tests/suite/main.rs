@@ -25,5 +25,6 @@ mod pack_checks;
 mod paper_cases;
 mod physics_invariants;
 mod scene_validation;
+mod shapes;
 mod stability_step;
 mod torsion;

@@ -52,6 +52,11 @@ enum Cmd {
         /// output sample (a serial pass over the bonds per sample).
         #[arg(long)]
         energy: bool,
+        /// Also write the bodies' surfaces as meshes with their displacements for ParaView:
+        /// surface_NNNN.vtu (triangles; lines in 2D) at up to 101 evenly spaced output samples
+        /// and surface.pvd listing them with their times.
+        #[arg(long)]
+        surface: bool,
         /// Print the result (including the series) as JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -114,6 +119,7 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             scene,
             out,
             energy,
+            surface,
             json,
         } => {
             let sc = Scene::load(&scene).map_err(|e| e.to_string())?;
@@ -133,11 +139,54 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 None
             };
             let pb = progress(sc.end_time, &sc.name);
+            // --surface: the mesh is made at the first state, then written every `stride`
+            // samples (at most 101 files).
+            let samples = (sc.end_time / sc.output_interval - 1e-9).ceil().max(1.0) as u64;
+            let stride = samples.div_ceil(100).max(1);
+            let mut mesh = None;
+            let mut pvd = mps_solid::output::PvdWriter::new();
+            let mut state_index = 0u64;
+            let mut surface_error: Option<String> = None;
             let r = run_scene_with(&sc, RunOptions { energy }, |e| match e {
                 RunEvent::Warning(w) => pb.suspend(|| eprintln!("warning: {w}")),
                 RunEvent::Sample(t) => pb.set_position((t * 1e6) as u64),
+                RunEvent::State(sim) => {
+                    let k = state_index;
+                    state_index += 1;
+                    if !surface || surface_error.is_some() || (k % stride != 0 && k != samples) {
+                        return;
+                    }
+                    if mesh.is_none() {
+                        match sim.surface_mesh(&sc) {
+                            Ok(m) => mesh = Some(m),
+                            Err(e) => {
+                                surface_error = Some(e.to_string());
+                                return;
+                            }
+                        }
+                    }
+                    let m = mesh.as_ref().expect("made above");
+                    let name = format!("surface_{:04}.vtu", k / stride + u64::from(k % stride != 0));
+                    let path = out.join(&name);
+                    match mps_solid::output::write_surface_vtu(
+                        &path,
+                        m,
+                        &sim.surface_displacement(m),
+                        sim.time(),
+                    ) {
+                        Ok(()) => pvd.add(sim.time(), name),
+                        Err(e) => surface_error = Some(e),
+                    }
+                }
             });
             pb.finish_and_clear();
+            if let Some(e) = &surface_error {
+                return Err(format!("--surface: {e}"));
+            }
+            if surface && r.is_ok() {
+                let p = out.join("surface.pvd");
+                pvd.write(&p)?;
+            }
             let r = r.inspect_err(|_| {
                 // Leave no empty output files behind a refused run.
                 let _ = std::fs::remove_file(&csv);

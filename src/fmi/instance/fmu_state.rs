@@ -32,8 +32,10 @@ pub struct FmuState {
 /// its strain energy law (`material.law`) and a boundary its mirror face (`mirror`, null when
 /// absent) in the state's scene. Version 5: the world's state carries the retained energy
 /// shares of particles whose re-fit at a break was limited and the energy released by breaks.
+/// Version 6: a body carries its shapes and cuts, a boundary group and a load region their
+/// selecting shape (issue 26) in the state's scene.
 const STATE_MAGIC: &[u8; 8] = b"MPSFMUST";
-const STATE_VERSION: u32 = 5;
+const STATE_VERSION: u32 = 6;
 /// Largest serialised state accepted (bytes): bounds the allocations of a decoded state.
 const MAX_STATE_BYTES: u64 = 1 << 34;
 

@@ -7,6 +7,8 @@
      - the lowest 12 modes (z-bending f1, first 8 labelled, first torsion);
      - static deflection under self weight: u_z on the axis (tip and 201 samples)
        and averaged over the tip face;
+     - the first peak of the tip's u_z when gravity is applied suddenly (modal
+       superposition over 40 modes with the static remainder of the others);
      - f1 and torsion again for nu = 0.499, with the displacement Hex27 element
        (which locks in bending) and with the mixed Q2-P1disc element (pressure
        condensed per element; locking-free);
@@ -20,6 +22,7 @@
      - the lowest 6 modes (f1 and first 4 labelled), the first mode shape along
        the axis (201 samples, 1 at the tip);
      - static u_y under a body force -9.81 m/s^2 along y (tip and 201 samples);
+     - the first peak of the tip's u_y when that body force is applied suddenly (30 modes);
      - thin-plate theory f1 and the GMS initial velocity profile.
    Writes reference/plate2d_fem.json.
 
@@ -64,6 +67,14 @@ import fem_reference as fr  # noqa: E402  (shared assembly, mode tidying, Richar
 REPO = fr.REPO
 G_ACC = 9.81
 NAXIS = 201                      # axis samples written to the JSON
+PEAK_MODES_CANT = 40             # modes for the sudden-gravity peak (second eigsh)
+PEAK_MODES_PLATE = 30
+PEAK_DOC = ("gravity applied suddenly at t = 0 from rest, undamped: modal superposition "
+            "u(t) = u_static - sum_k phi_k (phi_k^T f / omega_k^2) cos(omega_k t) over the "
+            "lowest modes of a second eigsh (the static remainder of the others kept: "
+            "mode-acceleration form); 'first peak' = the extremum over t in [0, 1/f1] (the "
+            "first period of the mesh's own f1), also the extremum over [0, 5/f1]; '_modal' "
+            "holds the truncation checks (half the modes; the pure truncated sum)")
 X_POWER = 1.5                    # x = L xi^1.5 (grading towards the clamp)
 ASPECT = 2.0                     # element length in x / mean element width: nx = 5 ny
 
@@ -104,21 +115,40 @@ def coords_for(ny, Lx, widths):
 
 
 # ---------------------------------------------------------------- solver
-def solve(coords, E, nu, rho, g, nmodes, volumetric="full", check=False, label=""):
+def solve(coords, E, nu, rho, g, nmodes, volumetric="full", check=False, label="",
+          peak_modes=0):
     """Clamped at x = 0; static solve under -rho g (last axis) and lowest modes."""
     t0 = time.time()
     lam, mu = lame_parameters(E, nu)
     mesh, basis, K, M, f = fr.assemble_tensor(coords, lam, mu, rho, g, check=check,
                                               scaled=True, volumetric=volumetric)
+    fixed = np.abs(basis.doflocs[0]) <= 1e-12
+    return solve_system(mesh, basis, K, M, f, fixed, nmodes, label=label, t_start=t0,
+                        peak_modes=peak_modes)
+
+
+def solve_system(mesh, basis, K, M, f, fixed, nmodes, label="", t_start=None, peak_modes=0,
+                 permc_spec="COLAMD", perm=None):
+    """Static solve K u = f and the lowest nmodes modes of K phi = omega^2 M phi with the
+    DOFs `fixed` (bool mask) held at 0: one SuperLU factorisation of K (no pivoting, K is
+    SPD), eigsh in shift-invert about 0 with a fixed start vector, modes tidied and
+    classified by fr.tidy_modes.  peak_modes > 0: a second eigsh with that many modes
+    (the first result is left as it is) for modal superposition (res["peak_basis"]).
+    res["lu"] and res["free"] allow further load cases.  perm: a function that reorders
+    the free DOFs (e.g. a nested dissection); SuperLU then keeps that order."""
+    t0 = time.time() if t_start is None else t_start
     comp = fr.dof_components(basis)
-    free = np.flatnonzero(np.abs(basis.doflocs[0]) > 1e-12)
+    free = np.flatnonzero(~fixed)
+    if perm is not None:
+        free = perm(free)
+        permc_spec = "NATURAL"
     Kc = K[free][:, free].tocsc()
     Mc = M[free][:, free].tocsr()
     fc = f[free]
     t_asm = time.time() - t0
     t0 = time.time()
     # K is SPD: no pivoting, symmetric mode (much less fill than the default for nu -> 1/2)
-    lu = spla.splu(Kc, permc_spec="COLAMD", diag_pivot_thresh=0.0,
+    lu = spla.splu(Kc, permc_spec=permc_spec, diag_pivot_thresh=0.0,
                    options={"SymmetricMode": True})
     t_lu = time.time() - t0
     t0 = time.time()
@@ -128,7 +158,15 @@ def solve(coords, E, nu, rho, g, nmodes, volumetric="full", check=False, label="
                        v0=np.ones(Kc.shape[0]), tol=1e-12)
     order = np.argsort(w2)
     w2, V = w2[order], V[:, order]
-    modes, V, _ = fr.tidy_modes(w2, V, Mc, comp[free], basis.doflocs[:, free], fc, us)
+    modes, V, pf = fr.tidy_modes(w2, V, Mc, comp[free], basis.doflocs[:, free], fc, us)
+    peak_basis = None
+    if peak_modes:
+        w2p, Vp = spla.eigsh(Kc, k=peak_modes, M=Mc, sigma=0.0, OPinv=op, which="LM",
+                             v0=np.ones(Kc.shape[0]), tol=1e-12)
+        order = np.argsort(w2p)
+        w2p, Vp = w2p[order], Vp[:, order]
+        Vp = Vp / np.sqrt(np.einsum("ij,ij->j", Vp, Mc @ Vp))
+        peak_basis = {"w2": w2p, "V": Vp}
     t_eig = time.time() - t0
 
     def full(v):
@@ -138,11 +176,55 @@ def solve(coords, E, nu, rho, g, nmodes, volumetric="full", check=False, label="
 
     res = {"mesh": mesh, "basis": basis, "u": full(us), "V": V, "full": full,
            "modes": modes, "dofs": int(basis.N), "elements": int(mesh.t.shape[1]),
-           "lu_nnz": int(lu.L.nnz + lu.U.nnz),
+           "lu_nnz": int(lu.L.nnz + lu.U.nnz), "lu": lu, "free": free, "f": f, "w2": w2, "pf": pf,
+           "peak_basis": peak_basis,
            "timing_s": {"assembly": t_asm, "lu": t_lu, "static_and_eigs": t_eig}}
     log(f"  {label}: {basis.N} dofs, asm {t_asm:.1f}s, LU {t_lu:.1f}s "
         f"(nnz {res['lu_nnz']:.2e}), eig {t_eig:.1f}s")
     return res
+
+
+def sudden_load_peaks(res, rows, f_load=None, t_first=None, periods=5, label_modes=None):
+    """Peak response at probes for the load f_load (default: the static load of `res`)
+    applied suddenly at t = 0 from rest, undamped, by modal superposition over the modes
+    of res["peak_basis"] (or res's own modes) plus the static remainder of the others.
+    rows: sparse probe matrix (n_probes x N).  t_first: the first period 1/f1; the first
+    peak is the extremum, in the direction of the static value, over t in [0, t_first];
+    also over [0, periods t_first].  Returns per probe: static, first peak and its time,
+    the peak over `periods` periods, and the first peak with half the modes and with
+    the truncated modal sum (checks of the modal truncation)."""
+    free, lu = res["free"], res["lu"]
+    pb = res["peak_basis"] or {"w2": res["w2"], "V": res["V"]}
+    w2, V = pb["w2"], pb["V"]
+    if f_load is None:
+        fc = res["f"][free]
+        us_full = res["u"]
+    else:
+        fc = f_load[free]
+        us_full = res["full"](lu.solve(fc))
+    omega = np.sqrt(w2)
+    amp = (V.T @ fc) / w2
+    R = rows.tocsr()
+    ust = R @ us_full
+    um = (R[:, free] @ V)                               # n_probes x nm
+    nm = V.shape[1]
+    dt = min(t_first / 4000.0, 2 * math.pi / omega[-1] / 40)
+    out = []
+    for p in range(R.shape[0]):
+        d = -1 if ust[p] < 0 else 1
+        pk, tp = fr.modal_peak(ust[p], um[p], amp, omega, t_first, dt, d)
+        pk5, tp5 = fr.modal_peak(ust[p], um[p], amp, omega, periods * t_first, dt, d)
+        h = max(1, nm // 2)
+        pkh, _ = fr.modal_peak(ust[p], um[p, :h], amp[:h], omega[:h], t_first,
+                               min(t_first / 4000.0, 2 * math.pi / omega[h - 1] / 40), d)
+        trunc = float((um[p] * amp).sum())
+        pkt, _ = fr.modal_peak(trunc, um[p], amp, omega, t_first, dt, d)
+        out.append({"static": float(ust[p]), "peak_first": pk, "peak_first_t_s": tp,
+                    "peak_over_periods": pk5, "peak_over_periods_t_s": tp5,
+                    "peak_first_half_modes": pkh, "peak_first_truncated_sum": pkt,
+                    "static_truncated_sum": trunc})
+    return out, {"modes_used": nm, "highest_mode_hz": float(omega[-1] / (2 * math.pi)),
+                 "periods": periods}
 
 
 def probe_rows(basis, pts, comp):
@@ -240,11 +322,12 @@ def check_mixed_element(lam, mu):
             "(to 1e-12), lower energy for div u outside P1")
 
 
-def cantilever_level(ny, nu, volumetric, nmodes, check):
+def cantilever_level(ny, nu, volumetric, nmodes, check, peak_modes=0):
     P = CANT
     coords, n = coords_for(ny, P["L"], [P["b"], P["h"]])
     r = solve(coords, P["E"], nu, P["rho"], G_ACC, nmodes, volumetric, check,
-              label=f"nu={nu} {volumetric} ny={ny} ({'x'.join(map(str, n))})")
+              label=f"nu={nu} {volumetric} ny={ny} ({'x'.join(map(str, n))})",
+              peak_modes=peak_modes)
     modes = r["modes"]
     row = {"mesh_n": n, "elements": r["elements"], "dofs": r["dofs"], "h": 1.0 / ny,
            "f1_bending_z_hz": first_of(modes, "bending-z"),
@@ -268,7 +351,25 @@ def cantilever_level(ny, nu, volumetric, nmodes, check):
                 "static_tip_uz_face_avg_m": float(vz @ u / area),
                 "uz_axis": uz})
     row["modes"] = modes[:8]
+    if peak_modes:
+        add_peak(row, r, probe_rows(basis, np.array([[P["L"]], [0.0], [0.0]]), 2),
+                 "tip_uz_axis", row["f1_bending_z_hz"])
     return row
+
+
+def add_peak(row, r, rows, name, f1):
+    """row["peak_dynamic_<name>_m"] etc.: gravity applied suddenly at t = 0 (first peak,
+    over the first period 1/f1), from sudden_load_peaks on one probe."""
+    pk, info = sudden_load_peaks(r, rows, t_first=1.0 / f1)
+    pk = pk[0]
+    row[f"peak_dynamic_{name}_m"] = pk["peak_first"]
+    row[f"peak_dynamic_{name}_t_s"] = pk["peak_first_t_s"]
+    row[f"peak_dynamic_{name}_over_5_periods_m"] = pk["peak_over_periods"]
+    row[f"peak_dynamic_{name}_over_5_periods_t_s"] = pk["peak_over_periods_t_s"]
+    row[f"peak_dynamic_{name}_modal"] = dict(info, **{
+        "static_full_m": pk["static"], "static_truncated_sum_m": pk["static_truncated_sum"],
+        "peak_first_half_modes_m": pk["peak_first_half_modes"],
+        "peak_first_truncated_sum_m": pk["peak_first_truncated_sum"]})
 
 
 def elastica(alpha, n_samples=NAXIS):
@@ -315,15 +416,16 @@ def run_cantilever(levels, inc_levels, mix03_levels, nmodes):
     q = P["rho"] * G_ACC * A
     log("3D cantilever: L=1, b=h=0.1, rho=1000, E=1e8, clamped at x=0, gravity -z")
 
-    def sequence(nu, vol, lv):
-        rows = [cantilever_level(n, nu, vol, nmodes, check=(i == 0 and vol == "full"))
+    def sequence(nu, vol, lv, peak_modes=0):
+        rows = [cantilever_level(n, nu, vol, nmodes, check=(i == 0 and vol == "full"),
+                                 peak_modes=peak_modes)
                 for i, n in enumerate(lv)]
         return rows, [r["h"] for r in rows]
 
     def conv_of(hs, rows, keys):
         return {k: convergence(hs, [r[k] for r in rows]) for k in keys}
 
-    rows, hs = sequence(P["nu"], "full", levels)
+    rows, hs = sequence(P["nu"], "full", levels, PEAK_MODES_CANT)
     cols = [("f1_bending_z_hz", "f1 z [Hz]", 1, ".6f"), ("f1_torsion_hz", "torsion [Hz]", 1, ".5f"),
             ("static_tip_uz_axis_m", "tip uz [mm]", 1e3, ".6f"),
             ("static_tip_uz_face_avg_m", "face avg [mm]", 1e3, ".6f")]
@@ -332,6 +434,11 @@ def run_cantilever(levels, inc_levels, mix03_levels, nmodes):
     conv_modes = label_convergence(hs, rows, 8)
     for k, c in conv.items():
         print_conv(k, c, 1e3 if k.startswith("static") else 1.0)
+    pkey = "peak_dynamic_tip_uz_axis_m"
+    print_table(rows, [(pkey, "peak [mm]", 1e3, ".6f")],
+                "first peak of u_z(L, 0, 0) under gravity applied suddenly")
+    conv_peak = convergence(hs, [r[pkey] for r in rows])
+    print_conv(pkey, conv_peak, 1e3)
     fin = rows[-1]
     # axis samples: the finest mesh and the change from the previous one
     uz_axis = fin["uz_axis"]
@@ -445,6 +552,7 @@ def run_cantilever(levels, inc_levels, mix03_levels, nmodes):
                                    "participation, as tools/fem_reference.py; the degenerate "
                                    "y/z bending pair is rotated so that the z mode is pure",
             "tip_face_average": "integral of u_z over the face x = L divided by b h",
+            "peak_dynamic": PEAK_DOC + f" ({PEAK_MODES_CANT} modes; probe: the tip on the axis)",
             "near_incompressible": "nu = 0.499 with the displacement Hex27 element and with "
                                    "the mixed Q2-P1disc element (lam div u div v with div u "
                                    "projected element-wise onto P1 = {1, x, y, z}, i.e. the "
@@ -467,6 +575,12 @@ def run_cantilever(levels, inc_levels, mix03_levels, nmodes):
             "f1_axial_hz": fin["f1_axial_hz"],
             "static_tip_uz_axis_m": fin["static_tip_uz_axis_m"],
             "static_tip_uz_face_avg_m": fin["static_tip_uz_face_avg_m"],
+            "peak_dynamic_tip_uz_axis_m": fin["peak_dynamic_tip_uz_axis_m"],
+            "peak_dynamic_tip_uz_axis_t_s": fin["peak_dynamic_tip_uz_axis_t_s"],
+            "peak_dynamic_tip_uz_axis_over_5_periods_m":
+                fin["peak_dynamic_tip_uz_axis_over_5_periods_m"],
+            "dynamic_amplification": fin["peak_dynamic_tip_uz_axis_m"] / fin["static_tip_uz_axis_m"],
+            "peak_dynamic_convergence": conv_peak,
             "convergence": conv,
             "lowest_modes": [{"f_hz": m["f_hz"], "type": m["type"]} for m in fin["modes"]],
             "lowest_modes_convergence": conv_modes,
@@ -530,7 +644,7 @@ def plate_level(ny, nmodes, check):
     P = PLATE
     coords, n = coords_for(ny, P["L"], [P["H"]])
     r = solve(coords, P["E"], P["nu"], P["rho"], G_ACC, nmodes, "full", check,
-              label=f"plate ny={ny} ({'x'.join(map(str, n))})")
+              label=f"plate ny={ny} ({'x'.join(map(str, n))})", peak_modes=PEAK_MODES_PLATE)
     basis, u = r["basis"], r["u"]
     modes = [{"f_hz": m["f_hz"], "type": m["type"].replace("bending-y", "bending"),
               "ke_fraction_xy": m["ke_fraction_xyz"],
@@ -551,6 +665,7 @@ def plate_level(ny, nmodes, check):
            "static_tip_uy_m": float(uy[-1]),
            "uy_axis": uy, "mode_uy_axis": ph_axis / scale, "mode_ux_top": (Px_top @ ph) / scale,
            "modes": modes[:6], "timing_s": r["timing_s"]}
+    add_peak(row, r, probe_rows(basis, np.array([[P["L"]], [0.0]]), 1), "tip_uy", row["f1_hz"])
     return row
 
 
@@ -573,6 +688,11 @@ def run_plate(levels, nmodes):
     print_table(rows, cols, "plate, Quad9 plane strain")
     fin = rows[-1]
     conv = {k: convergence(hs, [r[k] for r in rows]) for k, _, _, _ in cols}
+    pkey = "peak_dynamic_tip_uy_m"
+    print_table(rows, [(pkey, "peak [mm]", 1e3, ".7f")],
+                "first peak of u_y(L, 0) under gravity applied suddenly")
+    conv_peak = convergence(hs, [r[pkey] for r in rows])
+    print_conv(pkey, conv_peak, 1e3)
     conv_modes = label_convergence(hs, rows, 4)
     for lab, c in conv_modes.items():
         print_conv(lab, c)
@@ -622,6 +742,8 @@ def run_plate(levels, nmodes):
                     "y = (H/2) sin(pi eta/2) for eta in [-1, 1], xi, eta uniform",
             "richardson": "f = f_inf + C h^p through the three finest meshes, h = 1/ny",
             "eigensolver": "scipy eigsh, shift-invert about 0 (lowest 6 modes), SuperLU",
+            "peak_dynamic": PEAK_DOC + f" ({PEAK_MODES_PLATE} modes; probe: (L, 0)); linear, "
+                            "so the peak per unit g is the value to use",
             "versions": versions(),
             "wall_time_s": round(wall),
         },
@@ -634,6 +756,12 @@ def run_plate(levels, nmodes):
             "lowest_modes_convergence": conv_modes,
             "static_tip_uy_m": fin["static_tip_uy_m"],
             "static_tip_uy_per_unit_g_m_per_m_s2": fin["static_tip_uy_m"] / G_ACC,
+            "peak_dynamic_tip_uy_m": fin["peak_dynamic_tip_uy_m"],
+            "peak_dynamic_tip_uy_t_s": fin["peak_dynamic_tip_uy_t_s"],
+            "peak_dynamic_tip_uy_per_unit_g_m_per_m_s2": fin["peak_dynamic_tip_uy_m"] / G_ACC,
+            "peak_dynamic_tip_uy_over_5_periods_m": fin["peak_dynamic_tip_uy_over_5_periods_m"],
+            "dynamic_amplification": fin["peak_dynamic_tip_uy_m"] / fin["static_tip_uy_m"],
+            "peak_dynamic_convergence": conv_peak,
             "convergence": conv,
             "static_uy_axis": {"x_m": list(xs), "uy_m": list(fin["uy_axis"]),
                                "uy_per_unit_g": list(fin["uy_axis"] / G_ACC),

@@ -244,7 +244,11 @@ pub fn write_png(path: &Path, snap: &ParticleSnapshot, view: View) -> Result<(),
     let r = if dp > 0.0 { r } else { 3 };
     // A particle's marker shows its volume (bodies filled from shapes): its radius scales as
     // the side of a cell of that volume.
-    let d = if snap.position.iter().all(|p| p[2] == 0.0) { 2 } else { 3 };
+    let d = if snap.position.iter().all(|p| p[2] == 0.0) {
+        2
+    } else {
+        3
+    };
     let cell = dp.powi(d);
     let radius = |i: usize| match snap.volume.get(i) {
         Some(&v) if v > 0.0 && cell > 0.0 => {

@@ -421,10 +421,24 @@ impl Scene {
             }
             let base = self.base_dir.as_deref();
             for (j, s) in b.shapes.iter().enumerate() {
-                shape::check(&format!("{f}.shapes[{j}]"), s, d, self.particle_spacing, true, base)?;
+                shape::check(
+                    &format!("{f}.shapes[{j}]"),
+                    s,
+                    d,
+                    self.particle_spacing,
+                    true,
+                    base,
+                )?;
             }
             for (j, s) in b.cuts.iter().enumerate() {
-                shape::check(&format!("{f}.cuts[{j}]"), s, d, self.particle_spacing, false, base)?;
+                shape::check(
+                    &format!("{f}.cuts[{j}]"),
+                    s,
+                    d,
+                    self.particle_spacing,
+                    false,
+                    base,
+                )?;
             }
             if let Some(v) = &b.velocity {
                 velocity::validate(&format!("{f}.velocity"), v, d)?;
@@ -596,13 +610,13 @@ impl Scene {
     pub fn body_contains(&self, b: &Body, p: &[f64]) -> bool {
         let d = self.dimension;
         if b.shapes.is_empty() && b.cuts.is_empty() {
-            return b.boxes.iter().any(|r| {
-                (0..d).all(|i| p[i] >= r.min[i] - 1e-9 && p[i] <= r.max[i] + 1e-9)
-            });
+            return b
+                .boxes
+                .iter()
+                .any(|r| (0..d).all(|i| p[i] >= r.min[i] - 1e-9 && p[i] <= r.max[i] + 1e-9));
         }
-        self.geometry(b).is_ok_and(|g| {
-            g.distance(shape::to3(p)) <= 1e-6 * self.particle_spacing
-        })
+        self.geometry(b)
+            .is_ok_and(|g| g.distance(shape::to3(p)) <= 1e-6 * self.particle_spacing)
     }
 
     /// Checks the selection of a boundary group or load region (`f` names it): a region, a

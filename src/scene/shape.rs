@@ -28,7 +28,7 @@ pub enum Shape {
     /// A ball; in 2D a disc.
     Sphere(Sphere),
     /// The half-space (x - point) . normal <= 0: the normal points out of the solid side. Only
-    /// as a cut (it is unbounded) or as a selection.
+    /// as a cut (it is unbounded; the normal then points into what remains) or as a selection.
     HalfSpace(HalfSpace),
     /// A closed triangle mesh read from an STL file (3D only).
     Mesh(MeshSpec),
@@ -60,7 +60,8 @@ pub struct Sphere {
     pub radius: f64,
 }
 
-/// A half-space: the points x with (x - point) . normal <= 0.
+/// A half-space: the points x with (x - point) . normal <= 0. As a cut it removes those points:
+/// its normal points into what remains of the body.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HalfSpace {
@@ -124,10 +125,24 @@ pub enum Solid {
         max: [f64; 3],
         dims: usize,
     },
-    Sphere { c: [f64; 3], r: f64 },
-    Cylinder { c: [f64; 3], a: [f64; 3], r: f64, half: f64 },
-    Disc { c: [f64; 3], r: f64 },
-    HalfSpace { p: [f64; 3], n: [f64; 3] },
+    Sphere {
+        c: [f64; 3],
+        r: f64,
+    },
+    Cylinder {
+        c: [f64; 3],
+        a: [f64; 3],
+        r: f64,
+        half: f64,
+    },
+    Disc {
+        c: [f64; 3],
+        r: f64,
+    },
+    HalfSpace {
+        p: [f64; 3],
+        n: [f64; 3],
+    },
     Mesh(Arc<LoadedMesh>),
 }
 
@@ -308,7 +323,11 @@ const MAX_MESH_BYTES: u64 = 256 << 20;
 /// is missing or not STL, no triangles, a surface that is not closed or not manifold (an edge
 /// not shared by exactly two triangles of opposite senses), a non-finite vertex, and a zero
 /// enclosed volume. Inward-facing triangles are turned round (`LoadedMesh::inverted`).
-pub fn load_mesh(field: &str, spec: &MeshSpec, base: Option<&Path>) -> Result<LoadedMesh, SceneError> {
+pub fn load_mesh(
+    field: &str,
+    spec: &MeshSpec,
+    base: Option<&Path>,
+) -> Result<LoadedMesh, SceneError> {
     let ff = format!("{field}.file");
     let path = mesh_path(base, &spec.file);
     let size = std::fs::metadata(&path)
@@ -328,7 +347,10 @@ pub fn load_mesh(field: &str, spec: &MeshSpec, base: Option<&Path>) -> Result<Lo
     let stl = stl_io::read_stl(&mut std::io::Cursor::new(&bytes)).map_err(|e| {
         err(
             &ff,
-            format!("{} is not a readable STL file (binary or ASCII): {e}", path.display()),
+            format!(
+                "{} is not a readable STL file (binary or ASCII): {e}",
+                path.display()
+            ),
         )
     })?;
     let rot = rotation(spec.rotate_deg.as_deref().unwrap_or(&[]));
@@ -356,7 +378,10 @@ pub fn load_mesh(field: &str, spec: &MeshSpec, base: Option<&Path>) -> Result<Lo
     if indices.is_empty() {
         return Err(err(
             &ff,
-            format!("{} holds no triangle with three distinct vertices", path.display()),
+            format!(
+                "{} holds no triangle with three distinct vertices",
+                path.display()
+            ),
         ));
     }
     let mut volume = signed_volume(&vertices, &indices);
@@ -384,7 +409,10 @@ pub fn load_mesh(field: &str, spec: &MeshSpec, base: Option<&Path>) -> Result<Lo
             }
         }
     }
-    let open: Vec<&(u32, u32)> = edges.keys().filter(|e| !edges.contains_key(&(e.1, e.0))).collect();
+    let open: Vec<&(u32, u32)> = edges
+        .keys()
+        .filter(|e| !edges.contains_key(&(e.1, e.0)))
+        .collect();
     if let Some(e) = open.first() {
         let (a, b) = (vertices[e.0 as usize], vertices[e.1 as usize]);
         return Err(err(
@@ -395,8 +423,12 @@ pub fn load_mesh(field: &str, spec: &MeshSpec, base: Option<&Path>) -> Result<Lo
             ),
         ));
     }
-    let lo = vertices.iter().fold([f64::INFINITY; 3], |l, p| [l[0].min(p.x), l[1].min(p.y), l[2].min(p.z)]);
-    let hi = vertices.iter().fold([f64::NEG_INFINITY; 3], |h, p| [h[0].max(p.x), h[1].max(p.y), h[2].max(p.z)]);
+    let lo = vertices.iter().fold([f64::INFINITY; 3], |l, p| {
+        [l[0].min(p.x), l[1].min(p.y), l[2].min(p.z)]
+    });
+    let hi = vertices.iter().fold([f64::NEG_INFINITY; 3], |h, p| {
+        [h[0].max(p.x), h[1].max(p.y), h[2].max(p.z)]
+    });
     let bbox = (0..3).map(|k| hi[k] - lo[k]).product::<f64>();
     if !(volume > 1e-9 * bbox) || volume == 0.0 {
         return Err(err(
@@ -485,14 +517,20 @@ pub fn check(
                 }
             } else {
                 let a = c.axis.as_ref().ok_or_else(|| {
-                    err(format!("{field}.axis"), "a 3D cylinder needs its axis direction")
+                    err(
+                        format!("{field}.axis"),
+                        "a 3D cylinder needs its axis direction",
+                    )
                 })?;
                 vector("axis", a, 3)?;
                 if a.iter().all(|x| *x == 0.0) {
                     return Err(err(format!("{field}.axis"), "must not be zero"));
                 }
                 let l = c.length.ok_or_else(|| {
-                    err(format!("{field}.length"), "a 3D cylinder needs its length (m)")
+                    err(
+                        format!("{field}.length"),
+                        "a 3D cylinder needs its length (m)",
+                    )
                 })?;
                 small("length", "a length", l)?;
             }
@@ -625,7 +663,15 @@ fn at2(c: [f64; 3], e1: [f64; 3], e2: [f64; 3], s: f64, t: f64) -> [f64; 3] {
 
 /// A parallelogram c + s e1 + t e2, s in [0, a], t in [0, b], as triangles no larger than
 /// `h`, facing e1 x e2.
-fn patch(out: &mut Vec<Vec<[f64; 3]>>, c: [f64; 3], e1: [f64; 3], e2: [f64; 3], a: f64, b: f64, h: f64) {
+fn patch(
+    out: &mut Vec<Vec<[f64; 3]>>,
+    c: [f64; 3],
+    e1: [f64; 3],
+    e2: [f64; 3],
+    a: f64,
+    b: f64,
+    h: f64,
+) {
     let n = ((a / h).ceil() as usize).clamp(1, 4096);
     let m = ((b / h).ceil() as usize).clamp(1, 4096);
     for i in 0..n {
@@ -661,7 +707,12 @@ impl Solid {
         };
         match self {
             Solid::Box { min, max, .. } if d == 2 => {
-                let c = [[min[0], min[1]], [max[0], min[1]], [max[0], max[1]], [min[0], max[1]]];
+                let c = [
+                    [min[0], min[1]],
+                    [max[0], min[1]],
+                    [max[0], max[1]],
+                    [min[0], max[1]],
+                ];
                 for k in 0..4 {
                     let (a, b) = (c[k], c[(k + 1) % 4]);
                     let len = ((b[0] - a[0]).abs() + (b[1] - a[1]).abs()).max(1e-300);
@@ -676,7 +727,9 @@ impl Solid {
                 }
             }
             Solid::Box { min, max, .. } => {
-                let e = |k: usize| -> [f64; 3] { std::array::from_fn(|i| if i == k { 1.0 } else { 0.0 }) };
+                let e = |k: usize| -> [f64; 3] {
+                    std::array::from_fn(|i| if i == k { 1.0 } else { 0.0 })
+                };
                 for k in 0..3 {
                     let (u, v) = ((k + 1) % 3, (k + 2) % 3);
                     let (a, b) = (max[u] - min[u], max[v] - min[v]);
@@ -728,14 +781,23 @@ impl Solid {
                     for j in 0..m {
                         let z0 = -half + 2.0 * half * j as f64 / m as f64;
                         let z1 = -half + 2.0 * half * (j + 1) as f64 / m as f64;
-                        let (p00, p10, p11, p01) = (p(i, z0, *r), p(i + 1, z0, *r), p(i + 1, z1, *r), p(i, z1, *r));
+                        let (p00, p10, p11, p01) = (
+                            p(i, z0, *r),
+                            p(i + 1, z0, *r),
+                            p(i + 1, z1, *r),
+                            p(i, z1, *r),
+                        );
                         out.push(vec![p00, p10, p11]);
                         out.push(vec![p00, p11, p01]);
                     }
                     for (z, up) in [(*half, true), (-half, false)] {
                         for k in 0..rings {
-                            let (r0, r1) = (r * k as f64 / rings as f64, r * (k + 1) as f64 / rings as f64);
-                            let (q00, q10, q11, q01) = (p(i, z, r0), p(i, z, r1), p(i + 1, z, r1), p(i + 1, z, r0));
+                            let (r0, r1) = (
+                                r * k as f64 / rings as f64,
+                                r * (k + 1) as f64 / rings as f64,
+                            );
+                            let (q00, q10, q11, q01) =
+                                (p(i, z, r0), p(i, z, r1), p(i + 1, z, r1), p(i + 1, z, r0));
                             let mut tri = |x: [f64; 3], y: [f64; 3], w: [f64; 3]| {
                                 if up {
                                     out.push(vec![x, y, w]);
@@ -756,7 +818,8 @@ impl Solid {
             Solid::HalfSpace { p, n } => {
                 let (lo, hi) = bounds;
                 let span = (0..d).map(|k| hi[k] - lo[k]).fold(0.0f64, f64::max);
-                let mid: [f64; 3] = std::array::from_fn(|k| if k < d { 0.5 * (lo[k] + hi[k]) } else { 0.0 });
+                let mid: [f64; 3] =
+                    std::array::from_fn(|k| if k < d { 0.5 * (lo[k] + hi[k]) } else { 0.0 });
                 // The foot of the middle of the bounds on the plane.
                 let off = dot(sub(mid, *p), *n);
                 let foot: [f64; 3] = std::array::from_fn(|k| mid[k] - off * n[k]);
@@ -779,12 +842,7 @@ impl Solid {
             }
             Solid::Mesh(m) => {
                 for t in m.mesh.triangles() {
-                    out.push(
-                        [t.a, t.b, t.c]
-                            .iter()
-                            .map(|q| [q.x, q.y, q.z])
-                            .collect(),
-                    );
+                    out.push([t.a, t.b, t.c].iter().map(|q| [q.x, q.y, q.z]).collect());
                 }
             }
         }

@@ -30,7 +30,10 @@ where
         let mut out = SurfaceMesh::default();
         let mut start = 0usize;
         for (k, b) in scene.bodies.iter().enumerate() {
-            let count = w.p.body[start..].iter().take_while(|&&x| x as usize == k).count();
+            let count = w.p.body[start..]
+                .iter()
+                .take_while(|&&x| x as usize == k)
+                .count();
             let range = start..start + count;
             start += count;
             if count == 0 {

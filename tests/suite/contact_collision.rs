@@ -25,9 +25,9 @@ fn cube(name: &str, min: [f64; 3], side: f64, v: [f64; 3]) -> Body {
             max: min.iter().map(|m| m + side).collect(),
         }],
         velocity: Some(mps_solid::scene::BodyVelocity::Uniform(v.to_vec())),
+        shapes: vec![],
+        cuts: vec![],
     }
-    shapes: vec![],
-    cuts: vec![],
 }
 
 fn scene(bodies: Vec<Body>, solver: SolverOptions) -> Scene {

@@ -117,7 +117,7 @@ fn a_box_shape_fills_bit_for_bit_as_the_box_body() {
     // The lattice of a body with shapes is anchored at boxes[0].min (else the origin), so a box
     // given as a shape on that lattice is the box body: same particles, volumes l0^3, and the
     // same run to the bit.
-    let dp = 0.02;
+    let dp: f64 = 0.02;
     let r = json!({"min": [0.0, 0.0, 0.0], "max": [0.2, 0.08, 0.06]});
     let with_gravity = |mut v: Value| {
         v["gravity"] = json!({"vector": [0.0, 0.0, -9.81]});
@@ -134,7 +134,10 @@ fn a_box_shape_fills_bit_for_bit_as_the_box_body() {
     for s in [&mut sa, &mut sb] {
         s.advance_to(0.005).unwrap();
     }
-    assert_eq!(sa.particle_snapshot().position, sb.particle_snapshot().position);
+    assert_eq!(
+        sa.particle_snapshot().position,
+        sb.particle_snapshot().position
+    );
 }
 
 #[test]
@@ -143,13 +146,25 @@ fn sphere_cylinder_and_disc_volumes_are_within_half_a_percent_at_10_across() {
     // the staircase of the lattice points inside is about 5 % off. The cells the surface cuts
     // are integrated on 6^3 sub-cells (8^2 in 2D) with the signed distance's ramp, whose
     // error is second order in the sub-cell (1e-4 here), so 0.5 % holds with margin.
-    let dp = 0.01;
-    let r = 0.05;
+    let dp: f64 = 0.01;
+    let r: f64 = 0.05;
     let rho = 1000.0;
     let cases: Vec<(&str, Value, f64)> = vec![
-        ("sphere", json!({"sphere": {"center": [0.0013, -0.0021, 0.0007], "radius": r}}), 4.0 / 3.0 * PI * r.powi(3)),
-        ("cylinder along x", json!({"cylinder": {"center": [0.0, 0.0, 0.0], "axis": [1.0, 0.0, 0.0], "radius": r, "length": 0.3}}), PI * r * r * 0.3),
-        ("oblique cylinder", json!({"cylinder": {"center": [0.0, 0.0, 0.0], "axis": [1.0, 0.7, 0.3], "radius": r, "length": 0.2}}), PI * r * r * 0.2),
+        (
+            "sphere",
+            json!({"sphere": {"center": [0.0013, -0.0021, 0.0007], "radius": r}}),
+            4.0 / 3.0 * PI * r.powi(3),
+        ),
+        (
+            "cylinder along x",
+            json!({"cylinder": {"center": [0.0, 0.0, 0.0], "axis": [1.0, 0.0, 0.0], "radius": r, "length": 0.3}}),
+            PI * r * r * 0.3,
+        ),
+        (
+            "oblique cylinder",
+            json!({"cylinder": {"center": [0.0, 0.0, 0.0], "axis": [1.0, 0.7, 0.3], "radius": r, "length": 0.2}}),
+            PI * r * r * 0.2,
+        ),
     ];
     for (what, shape, exact) in cases {
         let s = scene_in(&one_body(3, dp, json!({"shapes": [shape]})), None).unwrap();
@@ -168,7 +183,11 @@ fn sphere_cylinder_and_disc_volumes_are_within_half_a_percent_at_10_across() {
     }
     // 2D: a disc of 10 across (area per m of depth).
     let s = scene_in(
-        &one_body(2, dp, json!({"shapes": [{"sphere": {"center": [0.0, 0.0], "radius": r}}]})),
+        &one_body(
+            2,
+            dp,
+            json!({"shapes": [{"sphere": {"center": [0.0, 0.0], "radius": r}}]}),
+        ),
         None,
     )
     .unwrap();
@@ -183,10 +202,14 @@ fn surface_particles_carry_the_solids_normal_and_area() {
     // exact for a plane, so the error is the sub-cell sampling of the cell faces, ~1e-3) and
     // normals along the radius (the share of a surface patch of a particle's cells: its mean
     // normal is radial to O(dp / R)^2 over the patch, 0.99 here).
-    let dp = 0.01;
-    let r = 0.05;
+    let dp: f64 = 0.01;
+    let r: f64 = 0.05;
     let s = scene_in(
-        &one_body(3, dp, json!({"shapes": [{"sphere": {"center": [0.0, 0.0, 0.0], "radius": r}}]})),
+        &one_body(
+            3,
+            dp,
+            json!({"shapes": [{"sphere": {"center": [0.0, 0.0, 0.0], "radius": r}}]}),
+        ),
         None,
     )
     .unwrap();
@@ -200,7 +223,11 @@ fn surface_particles_carry_the_solids_normal_and_area() {
         if *a > 0.0 {
             carriers += 1;
             let radial = w.p.x0[i].normalize();
-            assert!(n.dot(&radial) > 0.95, "particle {i}: normal {n:?} at {:?}", w.p.x0[i]);
+            assert!(
+                n.dot(&radial) > 0.95,
+                "particle {i}: normal {n:?} at {:?}",
+                w.p.x0[i]
+            );
         }
     }
     assert!(carriers > 100, "{carriers} surface particles");
@@ -208,8 +235,10 @@ fn surface_particles_carry_the_solids_normal_and_area() {
 
 #[test]
 fn cuts_make_holes_and_half_spaces_cut() {
-    // A plate with a round hole: volume within 0.5 % of (W L - pi a^2) t.
-    let dp = 0.01;
+    // A plate with a round hole: volume within 0.5 % of (W L - pi a^2) t. A cut removes its
+    // solid; a half-space is the side its normal points away from, so the cut that keeps
+    // x < 0.35 has its normal along -x (out of the removed side, into what stays).
+    let dp: f64 = 0.01;
     let v = one_body(
         3,
         dp,
@@ -217,7 +246,7 @@ fn cuts_make_holes_and_half_spaces_cut() {
             "boxes": [{"min": [0.0, 0.0, 0.0], "max": [0.4, 0.2, 0.04]}],
             "cuts": [
                 {"cylinder": {"center": [0.2, 0.1, 0.02], "axis": [0.0, 0.0, 1.0], "radius": 0.04, "length": 1.0}},
-                {"half_space": {"point": [0.35, 0.0, 0.0], "normal": [1.0, 0.0, 0.0]}}
+                {"half_space": {"point": [0.35, 0.0, 0.0], "normal": [-1.0, 0.0, 0.0]}}
             ]
         }),
     );
@@ -235,7 +264,7 @@ fn cuts_make_holes_and_half_spaces_cut() {
 
 #[test]
 fn boundaries_loads_and_probes_select_by_shape() {
-    let dp = 0.01;
+    let dp: f64 = 0.01;
     let mut v = one_body(
         3,
         dp,
@@ -253,14 +282,27 @@ fn boundaries_loads_and_probes_select_by_shape() {
     v["probes"] = json!([{"name": "side", "point": [0.15, 0.0, 0.03]}]);
     let s = scene_in(&v, None).unwrap();
     let sim = Simulation::new(&s).unwrap();
-    assert_eq!(sim.group_size(0), 2 * 28, "two layers of the 28-particle section");
+    // The section of radius 3 l0 on the lattice (centres at odd multiples of l0 / 2): per
+    // quadrant the 3 x 3 centres but the corner (0.025, 0.025), 8, so 32 per layer; the
+    // half-space x <= 0.02 holds the layers at x = 0.005 and 0.015.
+    assert_eq!(
+        sim.group_size(0),
+        2 * 32,
+        "two layers of the 32-particle section"
+    );
     assert!(sim.load_size(0) > 0);
     let at = sim.probe_particle_position(0);
     assert!((at[2] - 0.025).abs() < 1e-9, "{at:?}");
     // A selection that holds no particle names the shape.
     v["loads"][0]["shape"]["sphere"]["center"] = json!([1.0, 1.0, 1.0]);
-    let e = Simulation::new(&scene_in(&v, None).unwrap()).unwrap_err().to_string();
-    assert!(e.contains("loads[0] ('tip').shape") && e.contains("no particle"), "{e}");
+    let e = Simulation::new(&scene_in(&v, None).unwrap())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("loads[0] ('tip').shape") && e.contains("no particle"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -282,7 +324,10 @@ fn stl_meshes_binary_and_ascii_fill_to_their_volume() {
         // Turned by 30 degrees about z and moved by 0.1 m along x.
         let xmax = w.p.x0.iter().map(|p| p.x).fold(f64::MIN, f64::max);
         let expect = 0.1 + 0.05 * 30f64.to_radians().cos();
-        assert!((xmax - expect).abs() < 0.002, "{file}: x max {xmax} vs {expect}");
+        assert!(
+            (xmax - expect).abs() < 0.002,
+            "{file}: x max {xmax} vs {expect}"
+        );
     }
 }
 
@@ -290,7 +335,11 @@ fn stl_meshes_binary_and_ascii_fill_to_their_volume() {
 fn mesh_error(tag: &str, tris: &[Tri], scale: f64) -> String {
     let dir = TempDir::new(tag);
     write_binary_stl(&dir.0.join("m.stl"), tris);
-    let v = one_body(3, 0.01, json!({"shapes": [{"mesh": {"file": "m.stl", "scale": scale}}]}));
+    let v = one_body(
+        3,
+        0.01,
+        json!({"shapes": [{"mesh": {"file": "m.stl", "scale": scale}}]}),
+    );
     scene_in(&v, Some(&dir.0)).unwrap_err().to_string()
 }
 
@@ -300,20 +349,22 @@ fn bad_meshes_are_errors_naming_the_field_and_reason() {
     let cube = cube_triangles(0.1);
     // Not closed: one triangle missing.
     let e = mesh_error("open", &cube[1..], 1.0);
-    assert!(e.contains(f) && e.contains("not closed") && e.contains("hole"), "{e}");
+    assert!(
+        e.contains(f) && e.contains("not closed") && e.contains("hole"),
+        "{e}"
+    );
     // Not manifold: two cubes sharing an edge (four triangles on it).
     let mut two = cube.clone();
-    two.extend(cube.iter().map(|t| t.map(|p| [p[0] + 0.1, p[1] + 0.1, p[2]])));
+    two.extend(
+        cube.iter()
+            .map(|t| t.map(|p| [p[0] + 0.1, p[1] + 0.1, p[2]])),
+    );
     let e = mesh_error("nonmanifold", &two, 1.0);
     assert!(e.contains(f) && e.contains("not manifold"), "{e}");
-    // Zero volume: a square and its reverse.
-    let sq = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.1, 0.1, 0.0], [0.0, 0.1, 0.0]];
-    let flat = vec![
-        [sq[0], sq[1], sq[2]],
-        [sq[0], sq[2], sq[3]],
-        [sq[0], sq[2], sq[1]],
-        [sq[0], sq[3], sq[2]],
-    ];
+    // Zero volume: a triangle and its reverse, back to back (closed and consistently
+    // oriented: every edge once each way).
+    let (a, b, c) = ([0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]);
+    let flat = vec![[a, b, c], [a, c, b]];
     let e = mesh_error("flat", &flat, 1.0);
     assert!(e.contains(f) && e.contains("encloses no volume"), "{e}");
     // Units off by 1000: a 2000 mm part read as metres.
@@ -324,11 +375,21 @@ fn bad_meshes_are_errors_naming_the_field_and_reason() {
     );
     // Smaller than one particle.
     let e = mesh_error("tiny", &cube_triangles(0.004), 1.0);
-    assert!(e.contains(&format!("{f}.scale")) && e.contains("less than one particle"), "{e}");
+    assert!(
+        e.contains(&format!("{f}.scale")) && e.contains("less than one particle"),
+        "{e}"
+    );
     // Missing file, and a file that is not STL.
-    let v = one_body(3, 0.01, json!({"shapes": [{"mesh": {"file": "nowhere.stl"}}]}));
+    let v = one_body(
+        3,
+        0.01,
+        json!({"shapes": [{"mesh": {"file": "nowhere.stl"}}]}),
+    );
     let e = scene_in(&v, None).unwrap_err().to_string();
-    assert!(e.contains(&format!("{f}.file")) && e.contains("nowhere.stl"), "{e}");
+    assert!(
+        e.contains(&format!("{f}.file")) && e.contains("nowhere.stl"),
+        "{e}"
+    );
     let dir = TempDir::new("garbage");
     std::fs::write(dir.0.join("g.stl"), b"solid x\nthis is not an stl\n").unwrap();
     let v = one_body(3, 0.01, json!({"shapes": [{"mesh": {"file": "g.stl"}}]}));
@@ -337,20 +398,27 @@ fn bad_meshes_are_errors_naming_the_field_and_reason() {
     // A mesh in a 2D scene.
     let v = one_body(2, 0.01, json!({"shapes": [{"mesh": {"file": "g.stl"}}]}));
     let e = scene_in(&v, Some(&dir.0)).unwrap_err().to_string();
-    assert!(e.contains("bodies[0] ('part').shapes[0]") && e.contains("3D"), "{e}");
+    assert!(
+        e.contains("bodies[0] ('part').shapes[0]") && e.contains("3D"),
+        "{e}"
+    );
 }
 
 #[test]
 fn inverted_meshes_are_turned_round_with_a_warning() {
     let dir = TempDir::new("inverted");
-    let inv: Vec<Tri> = cube_triangles(0.05).iter().map(|t| [t[0], t[2], t[1]]).collect();
+    let inv: Vec<Tri> = cube_triangles(0.05)
+        .iter()
+        .map(|t| [t[0], t[2], t[1]])
+        .collect();
     write_binary_stl(&dir.0.join("inv.stl"), &inv);
     let v = one_body(3, 0.005, json!({"shapes": [{"mesh": {"file": "inv.stl"}}]}));
     let s = scene_in(&v, Some(&dir.0)).unwrap();
     let w = s.warnings();
     assert!(
-        w.iter().any(|w| w.field == "bodies[0] ('part').shapes[0].mesh.file"
-            && w.message.contains("face inward")),
+        w.iter()
+            .any(|w| w.field == "bodies[0] ('part').shapes[0].mesh.file"
+                && w.message.contains("face inward")),
         "{w:?}"
     );
     let vol = volume3(&world3(&s));
@@ -359,32 +427,61 @@ fn inverted_meshes_are_turned_round_with_a_warning() {
 
 #[test]
 fn bad_shapes_are_errors_naming_the_field_and_reason() {
-    let err = |body: Value, d: usize| scene_in(&one_body(d, 0.01, body), None).unwrap_err().to_string();
+    let err = |body: Value, d: usize| {
+        scene_in(&one_body(d, 0.01, body), None)
+            .unwrap_err()
+            .to_string()
+    };
     // Smaller than one particle.
-    let e = err(json!({"shapes": [{"sphere": {"center": [0.0, 0.0, 0.0], "radius": 0.003}}]}), 3);
-    assert!(e.contains("shapes[0].radius") && e.contains("smaller than one particle"), "{e}");
+    let e = err(
+        json!({"shapes": [{"sphere": {"center": [0.0, 0.0, 0.0], "radius": 0.003}}]}),
+        3,
+    );
+    assert!(
+        e.contains("shapes[0].radius") && e.contains("smaller than one particle"),
+        "{e}"
+    );
     // A cut that removes the whole body.
     let s = scene_in(
-        &one_body(3, 0.01, json!({
-            "shapes": [{"sphere": {"center": [0.0, 0.0, 0.0], "radius": 0.05}}],
-            "cuts": [{"half_space": {"point": [0.0, 0.0, 0.06], "normal": [0.0, 0.0, 1.0]}}]
-        })),
+        &one_body(
+            3,
+            0.01,
+            json!({
+                "shapes": [{"sphere": {"center": [0.0, 0.0, 0.0], "radius": 0.05}}],
+                "cuts": [{"half_space": {"point": [0.0, 0.0, 0.06], "normal": [0.0, 0.0, 1.0]}}]
+            }),
+        ),
         None,
     )
     .unwrap();
     let e = Simulation::new(&s).err().expect("refused").to_string();
-    assert!(e.contains("bodies[0] ('part').cuts") && e.contains("remove the whole body"), "{e}");
+    assert!(
+        e.contains("bodies[0] ('part').cuts") && e.contains("remove the whole body"),
+        "{e}"
+    );
     // A half-space as a body's shape (unbounded).
-    let e = err(json!({"shapes": [{"half_space": {"point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}}]}), 3);
+    let e = err(
+        json!({"shapes": [{"half_space": {"point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}}]}),
+        3,
+    );
     assert!(e.contains("shapes[0]") && e.contains("unbounded"), "{e}");
     // A 3D cylinder without its axis; a 2D one with an axis.
-    let e = err(json!({"shapes": [{"cylinder": {"center": [0.0, 0.0, 0.0], "radius": 0.05, "length": 0.2}}]}), 3);
+    let e = err(
+        json!({"shapes": [{"cylinder": {"center": [0.0, 0.0, 0.0], "radius": 0.05, "length": 0.2}}]}),
+        3,
+    );
     assert!(e.contains("shapes[0].axis"), "{e}");
-    let e = err(json!({"shapes": [{"cylinder": {"center": [0.0, 0.0], "radius": 0.05, "axis": [1.0, 0.0, 0.0]}}]}), 2);
+    let e = err(
+        json!({"shapes": [{"cylinder": {"center": [0.0, 0.0], "radius": 0.05, "axis": [1.0, 0.0, 0.0]}}]}),
+        2,
+    );
     assert!(e.contains("shapes[0]") && e.contains("disc"), "{e}");
     // No box and no shape.
     let e = err(json!({}), 3);
-    assert!(e.contains("bodies[0] ('part').boxes") && e.contains("box or shape"), "{e}");
+    assert!(
+        e.contains("bodies[0] ('part').boxes") && e.contains("box or shape"),
+        "{e}"
+    );
     // An unknown shape kind is a parse error naming the path.
     let e = err(json!({"shapes": [{"torus": {}}]}), 3);
     assert!(e.contains("bodies[0].shapes[0]"), "{e}");
@@ -395,15 +492,26 @@ fn existing_scene_files_read_unchanged() {
     // `boxes` stays, the new fields are optional: every committed scene reads, and its
     // bodies have no shapes.
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for f in ["tests/data/small2d.json", "tests/data/small3d.json", "scenes/case1_column.json"] {
+    for f in [
+        "tests/data/small2d.json",
+        "tests/data/small3d.json",
+        "scenes/case1_column.json",
+    ] {
         let s = Scene::load(&root.join(f)).unwrap();
-        assert!(s.bodies.iter().all(|b| b.shapes.is_empty() && b.cuts.is_empty()), "{f}");
+        assert!(
+            s.bodies
+                .iter()
+                .all(|b| b.shapes.is_empty() && b.cuts.is_empty()),
+            "{f}"
+        );
     }
 }
 
 /// The converged value of a quantity of a FEM reference file.
 fn fem(file: &str, q: &str) -> f64 {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference").join(file);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("reference")
+        .join(file);
     let v: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     v["converged"]["quantities"][q]["value"].as_f64().unwrap()
 }
@@ -421,12 +529,17 @@ fn cylinder_cantilever_against_the_fem() {
     let mut w = world3(&s);
     let (u, f1) = {
         let mut lin = Linearised::new(&w).unwrap();
-        let u = lin.static_gravity(Vect::<3>::new(0.0, 0.0, -9.81), 1e-10).unwrap();
+        let u = lin
+            .static_gravity(Vect::<3>::new(0.0, 0.0, -9.81), 1e-10)
+            .unwrap();
         let (omega, _) = lin.lowest_mode(&u, 1e-10).unwrap();
         (u, omega / (2.0 * PI))
     };
     let tip = field_at(&mut w, &u, &Vect::<3>::new(1.0, 0.0, 0.0), Some(0)).unwrap();
-    let (f_ref, u_ref) = (fem("cylinder3d_fem.json", "f1_hz"), fem("cylinder3d_fem.json", "static_tip_uz_m"));
+    let (f_ref, u_ref) = (
+        fem("cylinder3d_fem.json", "f1_hz"),
+        fem("cylinder3d_fem.json", "static_tip_uz_m"),
+    );
     let (ef, eu) = (f1 / f_ref - 1.0, tip.z / u_ref - 1.0);
     eprintln!(
         "cylinder 6 across: f1 {f1:.5} Hz ({:+.3} %), tip {:.6e} m ({:+.3} %), {} particles",
@@ -436,7 +549,10 @@ fn cylinder_cantilever_against_the_fem() {
         w.len()
     );
     // Recorded, not yet held to the 1 %: see docs/model.md, "Bodies of any shape".
-    assert!(ef.abs() < 0.05 && eu.abs() < 0.10, "f1 {ef:+.4}, tip {eu:+.4}");
+    assert!(
+        ef.abs() < 0.05 && eu.abs() < 0.10,
+        "f1 {ef:+.4}, tip {eu:+.4}"
+    );
 }
 
 #[test]
@@ -460,11 +576,17 @@ fn plate_with_a_round_hole_against_the_fem() {
         let mut lin = Linearised::new(&w).unwrap();
         let n = rhs.len();
         let (u, _) = lin.solve(&rhs, 1e-10, 40 * n + 1000).unwrap();
-        let start: Vec<Vect<2>> = w.p.x0.iter().map(|p| Vect::<2>::new(0.0, p.x * p.x)).collect();
+        let start: Vec<Vect<2>> =
+            w.p.x0
+                .iter()
+                .map(|p| Vect::<2>::new(0.0, p.x * p.x))
+                .collect();
         let (omega, _) = lin.lowest_mode(&start, 1e-10).unwrap();
         (u, omega / (2.0 * PI))
     };
-    let ux = field_at(&mut w, &u, &Vect::<2>::new(0.8, 0.0), Some(0)).unwrap().x;
+    let ux = field_at(&mut w, &u, &Vect::<2>::new(0.8, 0.0), Some(0))
+        .unwrap()
+        .x;
     let (f_ref, u_ref) = (
         fem("plate_round_hole2d_fem.json", "f1_hz"),
         fem("plate_round_hole2d_fem.json", "end_ux_centre_m"),
@@ -476,5 +598,172 @@ fn plate_with_a_round_hole_against_the_fem() {
         100.0 * eu,
         w.len()
     );
-    assert!(ef.abs() < 0.05 && eu.abs() < 0.05, "f1 {ef:+.4}, u_x {eu:+.4}");
+    assert!(
+        ef.abs() < 0.05 && eu.abs() < 0.05,
+        "f1 {ef:+.4}, u_x {eu:+.4}"
+    );
+}
+
+#[test]
+#[ignore = "slow (a 3D impact of 5,000 particles over 3,000 steps): the full test command runs it"]
+fn ball_on_a_thick_plate_conserves_energy_and_lasts_as_hertz_says() {
+    // A ball of radius R = 0.05 m (10 particles across, filled from a sphere) at v = 1 m/s onto
+    // a block 0.2 x 0.2 x 0.1 m whose base is held, both E = 1 MPa, nu = 0.3, rho = 1000,
+    // corrected operator at the default safety. Energy: the staggered energy (as
+    // energy_drift::contact_impact_returns_its_energy) after the ball has left, against before
+    // the impact: the box tests' bound of 0.2 % at safety 0.8. Contact time: Hertz's
+    // t = 2.87 (m^2 / (R E*^2 v))^(1/5) for a ball on a half-space (E* = E / (2 (1 - nu^2)),
+    // both bodies deforming) is 20.6 ms; the target is 10 % at 10 particles across.
+    let r: f64 = 0.05;
+    let dp: f64 = 0.01;
+    let (e, nu, rho, v) = (1e6, 0.3, 1000.0, 1.0);
+    let mut s = one_body(
+        3,
+        dp,
+        json!({"shapes": [{"sphere": {"center": [0.0, 0.0, r + 0.5 * dp], "radius": r}}], "velocity": [0.0, 0.0, -v]}),
+    );
+    s["name"] = json!("ball_on_plate");
+    s["bodies"][0]["name"] = json!("ball");
+    s["bodies"][0]["material"] = json!({"density": rho, "young": e, "poisson": nu});
+    s["bodies"].as_array_mut().unwrap().push(json!({
+        "name": "block", "material": {"density": rho, "young": e, "poisson": nu},
+        "boxes": [{"min": [-0.1, -0.1, -0.1], "max": [0.1, 0.1, 0.0]}]
+    }));
+    s["boundaries"] = json!([{"name": "base", "kind": "clamped", "body": "block",
+        "region": {"min": [-0.1, -0.1, -0.1], "max": [0.1, 0.1, -0.09]}}]);
+    s["end_time"] = json!(1.0);
+    let scene = scene_in(&s, None).unwrap();
+    let mut w = world3(&scene);
+    let mass: f64 = (0..w.len())
+        .filter(|&i| w.p.body[i] == 0)
+        .map(|i| w.p.mass[i])
+        .sum();
+    let dt = w.max_dt();
+    let stag = |w: &World<3>| {
+        let k: f64 = (0..w.len())
+            .map(|i| {
+                let m = w.p.mass[i];
+                let vi = w.p.v[i];
+                0.5 * m * vi.dot(&(vi + w.internal_force(i) * (dt / m)))
+            })
+            .sum();
+        k + w.strain_energy() + w.contact_energy()
+    };
+    let e0 = stag(&w);
+    let (mut t_on, mut t_off) = (None, None);
+    let mut steps = 0u64;
+    while t_off.is_none() {
+        w.step(dt).unwrap();
+        steps += 1;
+        let c = w.contact_pairs();
+        if c > 0 && t_on.is_none() {
+            t_on = Some(w.time);
+        }
+        if c == 0 && t_on.is_some() {
+            t_off = Some(w.time);
+        }
+        assert!(steps < 100_000, "the ball never left");
+    }
+    let mut sum = 0.0;
+    let n = 1000;
+    for _ in 0..n {
+        w.step(dt).unwrap();
+        sum += stag(&w);
+    }
+    let drift = sum / n as f64 / e0 - 1.0;
+    let estar = e / (2.0 * (1.0 - nu * nu));
+    let hertz = 2.87 * (mass * mass / (r * estar * estar * v)).powf(0.2);
+    let tc = t_off.unwrap() - t_on.unwrap();
+    eprintln!(
+        "ball on plate: mass {mass:.4} kg ({:+.3} % of the sphere's), contact {:.3} ms vs Hertz {:.3} ms ({:+.1} %), energy after {:+.4} %, dt {dt:.3e} s, {} particles",
+        100.0 * (mass / (rho * 4.0 / 3.0 * PI * r.powi(3)) - 1.0),
+        1e3 * tc,
+        1e3 * hertz,
+        100.0 * (tc / hertz - 1.0),
+        100.0 * drift,
+        w.len()
+    );
+    assert!(drift.abs() < 2e-3, "energy changed by {drift}");
+    assert!(
+        (tc / hertz - 1.0).abs() < 0.10,
+        "contact {tc} s vs Hertz {hertz} s"
+    );
+}
+
+#[test]
+fn snapshots_and_surface_meshes_show_the_shapes() {
+    // The VTU snapshot carries each particle's volume, normal and area; the surface mesh lies
+    // on the solid (within a spacing where the cut meets the sphere), faces out, and its
+    // vertices follow the particles.
+    let dp: f64 = 0.01;
+    let r: f64 = 0.05;
+    let mut v = one_body(
+        3,
+        dp,
+        json!({
+            "shapes": [{"sphere": {"center": [0.0, 0.0, 0.0], "radius": r}}],
+            "cuts": [{"half_space": {"point": [0.0, 0.0, 0.03], "normal": [0.0, 0.0, -1.0]}}],
+            "velocity": [0.0, 0.0, -1.0]
+        }),
+    );
+    v["end_time"] = json!(0.002);
+    let s = scene_in(&v, None).unwrap();
+    let mut sim = Simulation::new(&s).unwrap();
+    let snap = sim.particle_snapshot();
+    let n = snap.position.len();
+    assert_eq!(
+        (snap.volume.len(), snap.normal.len(), snap.area.len()),
+        (n, n, n)
+    );
+    let dir = TempDir::new("surface");
+    let vtu = dir.0.join("s.vtu");
+    mps_solid::output::write_vtu(&vtu, &snap).unwrap();
+    let text = std::fs::read_to_string(&vtu).unwrap();
+    for name in ["\"volume\"", "\"normal\"", "\"area\""] {
+        assert!(text.contains(name), "{name} missing");
+    }
+    let mesh = sim.surface_mesh(&s).unwrap();
+    assert!(mesh.cells.len() > 200, "{} triangles", mesh.cells.len());
+    let mut outward = 0;
+    for c in &mesh.cells {
+        let p: Vec<[f64; 3]> = c.iter().map(|&i| mesh.points[i as usize]).collect();
+        let cen: [f64; 3] = std::array::from_fn(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
+        let e1: [f64; 3] = std::array::from_fn(|k| p[1][k] - p[0][k]);
+        let e2: [f64; 3] = std::array::from_fn(|k| p[2][k] - p[0][k]);
+        let nrm = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
+        // Out of the cut ball: along +z on the flat face, along the radius elsewhere.
+        let dir = if cen[2] > 0.03 - 1e-9 {
+            [0.0, 0.0, 1.0]
+        } else {
+            cen
+        };
+        if nrm[0] * dir[0] + nrm[1] * dir[1] + nrm[2] * dir[2] > 0.0 {
+            outward += 1;
+        }
+        for q in &p {
+            let rad = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            // Seams where the cut meets the sphere are jagged at the scale of l0.
+            assert!(
+                rad <= r + dp && q[2] <= 0.03 + dp,
+                "vertex {q:?} off the solid"
+            );
+        }
+    }
+    assert!(
+        outward as f64 > 0.98 * mesh.cells.len() as f64,
+        "{outward} of {} face out",
+        mesh.cells.len()
+    );
+    sim.advance_to(0.002).unwrap();
+    let u = sim.surface_displacement(&mesh);
+    assert!(
+        u.iter().all(|d| (d[2] + 0.002).abs() < 1e-4),
+        "a free ball moves as one"
+    );
+    mps_solid::output::write_surface_vtu(&dir.0.join("surface.vtu"), &mesh, &u, sim.time())
+        .unwrap();
 }

@@ -166,7 +166,8 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                         }
                     }
                     let m = mesh.as_ref().expect("made above");
-                    let name = format!("surface_{:04}.vtu", k / stride + u64::from(k % stride != 0));
+                    let name =
+                        format!("surface_{:04}.vtu", k / stride + u64::from(k % stride != 0));
                     let path = out.join(&name);
                     match mps_solid::output::write_surface_vtu(
                         &path,

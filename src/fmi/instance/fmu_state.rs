@@ -250,9 +250,12 @@ impl Instance {
                 payload.len()
             )));
         }
-        let s: FmuState = Self::bincode()
+        let mut s: FmuState = Self::bincode()
             .deserialize(payload)
             .map_err(|e| bad(&format!("cannot decode: {e}")))?;
+        // The folder of the scene's mesh files is not part of the data: it is this instance's
+        // resources folder.
+        s.params.base_dir = self.scene.base_dir.clone();
         self.check_state(&s)?;
         Ok(s)
     }

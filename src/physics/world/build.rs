@@ -163,8 +163,8 @@ where
         );
         for (b, body) in bodies.iter().enumerate() {
             for (k, pt) in body.points.iter().enumerate() {
-                let m = body.material.density
-                    * body.shape.as_ref().map_or(volume, |s| s.volumes[k]);
+                let m =
+                    body.material.density * body.shape.as_ref().map_or(volume, |s| s.volumes[k]);
                 let (v, w) = match &body.velocity {
                     InitialVelocity::Uniform(v) => (*v, <Space as Dim<D>>::ang_zero()),
                     InitialVelocity::PerParticle { v, w } => (

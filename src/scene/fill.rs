@@ -104,7 +104,7 @@ pub(crate) fn lattice_range(
         }
         let a = ((lo[k] - o[k]) / dp).floor() - 1.0;
         let z = ((hi[k] - o[k]) / dp).ceil() + 1.0;
-        if !(z - a <= 1e7) {
+        if z - a > 1e7 {
             return None;
         }
         first[k] = a as i64;
@@ -113,10 +113,14 @@ pub(crate) fn lattice_range(
     Some((first, n))
 }
 
+/// A cell the surface may cross: the solid's volume fraction, its centroid (m) and the vector
+/// area of the surface in it (m^(d-1)).
+type CutCell = (f64, [f64; 3], [f64; 3]);
+
 /// Per boundary cell: the solid's volume in it (fraction of l0^d), its centroid and the vector
 /// area of the solid's surface in it (-sum over the cell's faces of their outward normal times
 /// the part of the face inside the solid: the divergence theorem on solid and cell).
-fn cut_cell(g: &Geometry, c: [f64; 3], dp: f64, d: usize) -> (f64, [f64; 3], [f64; 3]) {
+fn cut_cell(g: &Geometry, c: [f64; 3], dp: f64, d: usize) -> CutCell {
     let k = subcells(d);
     let h = dp / k as f64;
     let ramp = |p: [f64; 3]| (0.5 - g.distance(p) / h).clamp(0.0, 1.0);
@@ -216,7 +220,7 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
     })?;
     dist.extend((0..cells).map(|c| g.distance(centre(c))));
     // Pass 2: integrate the cells the surface may cross (in parallel: each writes its own).
-    let mut cut: Vec<(usize, (f64, [f64; 3], [f64; 3]))> = (0..cells)
+    let mut cut: Vec<(usize, CutCell)> = (0..cells)
         .filter(|&c| dist[c].abs() < half_diagonal)
         .map(|c| (c, (0.0, [0.0; 3], [0.0; 3])))
         .collect();
@@ -287,7 +291,7 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
             let mut lin = 0usize;
             let mut stride = 1usize;
             for a in 0..D {
-                q[a] += (r % (2 * reach + 1)) as i64 - reach;
+                q[a] += r % (2 * reach + 1) - reach;
                 r /= 2 * reach + 1;
                 if q[a] < 0 || q[a] >= n[a] as i64 {
                     ok = false;

@@ -430,7 +430,7 @@ pub fn load_mesh(
         [h[0].max(p.x), h[1].max(p.y), h[2].max(p.z)]
     });
     let bbox = (0..3).map(|k| hi[k] - lo[k]).product::<f64>();
-    if !(volume > 1e-9 * bbox) || volume == 0.0 {
+    if volume.is_nan() || volume <= 1e-9 * bbox || volume == 0.0 {
         return Err(err(
             &ff,
             format!(

@@ -153,7 +153,10 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                 RunEvent::State(sim) => {
                     let k = state_index;
                     state_index += 1;
-                    if !surface || surface_error.is_some() || (k % stride != 0 && k != samples) {
+                    if !surface
+                        || surface_error.is_some()
+                        || (!k.is_multiple_of(stride) && k != samples)
+                    {
                         return;
                     }
                     if mesh.is_none() {
@@ -166,8 +169,10 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
                         }
                     }
                     let m = mesh.as_ref().expect("made above");
-                    let name =
-                        format!("surface_{:04}.vtu", k / stride + u64::from(k % stride != 0));
+                    let name = format!(
+                        "surface_{:04}.vtu",
+                        k / stride + u64::from(!k.is_multiple_of(stride))
+                    );
                     let path = out.join(&name);
                     match mps_solid::output::write_surface_vtu(
                         &path,

@@ -54,6 +54,16 @@ pub struct ParticleSnapshot {
     /// Held by a boundary condition on at least one axis (supports, clamps); empty = none.
     #[serde(default)]
     pub fixed: Vec<bool>,
+    /// The volume each particle stands for (m^3; m^2 in 2D, per m of depth); empty = unknown.
+    #[serde(default)]
+    pub volume: Vec<f64>,
+    /// Of bodies filled from shapes: the outward unit normal of the solid's surface a particle
+    /// carries (zero inside); empty when no body has a shape.
+    #[serde(default)]
+    pub normal: Vec<[f64; 3]>,
+    /// The area of that surface (m^2; m in 2D); empty when no body has a shape.
+    #[serde(default)]
+    pub area: Vec<f64>,
 }
 
 /// The evolving state of a simulation as plain data (serde): FMU state, checkpoints.
@@ -357,8 +367,23 @@ impl Simulation {
                 surface: w.contact.surface.clone(),
                 broken_bonds: (0..n).map(|i| w.broken_bonds_of(i)).collect(),
                 fixed: w.p.fix.iter().map(|&f| f != 0).collect(),
+                volume: w.op.base_vol.clone(),
+                normal: w.surface.iter().map(|(nrm, _)| to3(nrm)).collect(),
+                area: w.surface.iter().map(|(_, a)| *a).collect(),
             }
         })
+    }
+    /// The surface mesh of the bodies of `scene` (the scene this simulation was built from):
+    /// `mps run --surface`.
+    pub fn surface_mesh(
+        &self,
+        scene: &Scene,
+    ) -> Result<crate::scene::surface::SurfaceMesh, SceneError> {
+        with!(self, m => m.surface_mesh(scene))
+    }
+    /// The displacement of each vertex of a surface mesh now (m).
+    pub fn surface_displacement(&self, mesh: &crate::scene::surface::SurfaceMesh) -> Vec<[f64; 3]> {
+        with!(self, m => m.surface_displacement(mesh))
     }
     pub fn state(&self) -> SimState {
         match self {

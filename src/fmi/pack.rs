@@ -1,5 +1,6 @@
 //! Builds `NAME.fmu` from a scene and the built cdylib: modelDescription.xml,
-//! binaries/linux64/<modelIdentifier>.so, resources/scene.json, documentation/index.html.
+//! binaries/linux64/<modelIdentifier>.so, resources/scene.json (with the STL files of its
+//! meshes beside it), documentation/index.html.
 use super::model_description::guid;
 use super::variables::{coordinate, point, VarType, VariableTable};
 use crate::scene::limits::num;
@@ -9,9 +10,65 @@ use std::path::Path;
 use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, ZipWriter};
 
-/// The modelDescription.xml of a scene's FMU.
+/// The modelDescription.xml of a scene's FMU (of its packed form, [`packed_scene`]).
 pub fn model_description_xml(scene: &Scene) -> String {
-    super::model_description::model_description_xml(scene)
+    super::model_description::model_description_xml(&packed_scene(scene).0)
+}
+
+/// Every mesh shape of a scene (bodies' shapes and cuts, boundaries' and loads' selections).
+fn meshes_mut(scene: &mut Scene) -> Vec<&mut crate::scene::MeshSpec> {
+    use crate::scene::Shape;
+    let mut out = Vec::new();
+    for b in &mut scene.bodies {
+        for s in b.shapes.iter_mut().chain(b.cuts.iter_mut()) {
+            if let Shape::Mesh(m) = s {
+                out.push(m);
+            }
+        }
+    }
+    for s in scene
+        .boundaries
+        .iter_mut()
+        .filter_map(|g| g.shape.as_mut())
+        .chain(scene.loads.iter_mut().filter_map(|l| l.shape.as_mut()))
+    {
+        if let Shape::Mesh(m) = s {
+            out.push(m);
+        }
+    }
+    out
+}
+
+/// The scene as an FMU holds it, and the files to put into its resources folder (path in the
+/// archive below `resources/`, file on disk). A mesh named by a plain relative path
+/// ("bracket.stl", "parts/bracket.stl") keeps it; any other ("../x.stl", "/abs/x.stl") becomes
+/// "meshes/<k>_<file name>", k its rank among the meshes.
+pub fn packed_scene(scene: &Scene) -> (Scene, Vec<(String, std::path::PathBuf)>) {
+    let mut packed = scene.clone();
+    let base = scene.base_dir.clone();
+    let mut files: Vec<(String, std::path::PathBuf)> = Vec::new();
+    for (k, m) in meshes_mut(&mut packed).into_iter().enumerate() {
+        let source = crate::scene::shape::mesh_path(base.as_deref(), &m.file);
+        let p = Path::new(&m.file);
+        let plain = p.is_relative()
+            && p.components()
+                .all(|c| matches!(c, std::path::Component::Normal(_)))
+            && m.file != "scene.json";
+        let name = if plain {
+            m.file.clone()
+        } else {
+            let file = p
+                .file_name()
+                .map(|f| f.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "mesh.stl".into());
+            format!("meshes/{k}_{file}")
+        };
+        m.file = name.clone();
+        if !files.iter().any(|(n, _)| *n == name) {
+            files.push((name, source));
+        }
+    }
+    (packed, files)
 }
 
 fn html(s: &str) -> String {
@@ -41,6 +98,22 @@ fn extent(min: &[f64], max: &[f64]) -> String {
         .map(|(a, b)| format!("[{}, {}]", coordinate(*a), coordinate(*b)))
         .collect::<Vec<_>>()
         .join(" &times; ")
+}
+
+/// A selection's region and shape for the documentation.
+fn selection(r: &crate::scene::Region, s: Option<&crate::scene::Shape>) -> String {
+    let shape = s.map(|s| {
+        html(
+            &serde_json::to_string(s)
+                .unwrap_or_default()
+                .replace(",\"", ", \""),
+        )
+    });
+    match (r.min.is_empty(), shape) {
+        (true, Some(s)) => s,
+        (false, Some(s)) => format!("{} and {s}", extent(&r.min, &r.max)),
+        (_, None) => extent(&r.min, &r.max),
+    }
 }
 
 /// documentation/index.html: the scene, its coupling regions (with the particle counts of the
@@ -93,7 +166,7 @@ pub fn documentation_html(scene: &Scene, sim: &crate::sim::Simulation) -> String
             "<tr><td>load region</td><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             html(&l.name),
             html(&l.body),
-            extent(&l.region.min, &l.region.max),
+            selection(&l.region, l.shape.as_ref()),
             sim.load_size(r)
         ));
     }
@@ -103,7 +176,7 @@ pub fn documentation_html(scene: &Scene, sim: &crate::sim::Simulation) -> String
             b.kind,
             html(&b.name),
             html(&b.body),
-            extent(&b.region.min, &b.region.max),
+            selection(&b.region, b.shape.as_ref()),
             sim.group_size(g)
         ));
     }
@@ -330,10 +403,18 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
     check_source_id(&lib, library)?;
     let sim = crate::sim::Simulation::new(scene)
         .map_err(|e| format!("the scene's model cannot be built: {e}"))?;
+    let (packed, files) = packed_scene(scene);
+    let mut meshes = Vec::new();
+    for (name, source) in files {
+        let data = std::fs::read(&source)
+            .map_err(|e| format!("cannot read the mesh {}: {e}", source.display()))?;
+        meshes.push((name, data));
+    }
+    let scene = &packed;
     let xml = super::model_description::packed_model_description_xml(scene)?;
     let doc = documentation_html(scene, &sim);
     drop(sim);
-    let archive = archive(scene, &xml, &doc, &lib)
+    let archive = archive(scene, &xml, &doc, &lib, &meshes)
         .map_err(|e| format!("cannot make the FMU archive of {}: {e}", out.display()))?;
     drop(lib);
     let dir = match out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -381,7 +462,13 @@ fn write_new_file(path: &Path, data: &[u8]) -> Result<(), String> {
 
 /// The FMU archive (zip) in memory: nothing of it reaches a file until it is complete, and the
 /// zip writer never meets an I/O error (its drop would print one).
-fn archive(scene: &Scene, xml: &str, doc: &str, lib: &[u8]) -> zip::result::ZipResult<Vec<u8>> {
+fn archive(
+    scene: &Scene,
+    xml: &str,
+    doc: &str,
+    lib: &[u8],
+    meshes: &[(String, Vec<u8>)],
+) -> zip::result::ZipResult<Vec<u8>> {
     type Writer = ZipWriter<std::io::Cursor<Vec<u8>>>;
     let mut z: Writer = ZipWriter::new(std::io::Cursor::new(Vec::new()));
     let opts = SimpleFileOptions::default()
@@ -413,6 +500,9 @@ fn archive(scene: &Scene, xml: &str, doc: &str, lib: &[u8]) -> zip::result::ZipR
         scene.to_json().as_bytes(),
         0o644,
     )?;
+    for (name, data) in meshes {
+        add(&mut z, &format!("resources/{name}"), data, 0o644)?;
+    }
     add(&mut z, "documentation/index.html", doc.as_bytes(), 0o644)?;
     Ok(z.finish()?.into_inner())
 }

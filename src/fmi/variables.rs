@@ -877,6 +877,7 @@ mod tests {
             name: "tip".into(),
             body: "beam".into(),
             region: s.boundaries[1].region.clone(),
+            shape: None,
         };
         s.loads = vec![l.clone(), l];
         let t = VariableTable::new(&s);

@@ -15,7 +15,7 @@ pub use self::png::{
     broken_pairs, write_grid_png_3d, write_png, write_png_3d, Camera, Frame3d, Grid3d, Image3d,
     Label3d, PanelGeometry, View, MAX_IMAGE_PIXELS,
 };
-pub use self::vtk::{write_vtu, PvdWriter};
+pub use self::vtk::{write_surface_vtu, write_vtu, PvdWriter};
 
 /// Writes `dir/name_NNNN.vtu` for each snapshot (NNNN = its index, zero padded to 4 digits),
 /// `dir/name.pvd` listing them with their times, and `dir/name_NNNN.png` projected on

@@ -242,7 +242,21 @@ pub fn write_png(path: &Path, snap: &ParticleSnapshot, view: View) -> Result<(),
 
     let r = (0.4 * dp * s).round().clamp(1.0, 12.0) as i32;
     let r = if dp > 0.0 { r } else { 3 };
-    let marker = |i: usize, colour: RGBColor| Circle::new(pts[i], r, colour.filled());
+    // A particle's marker shows its volume (bodies filled from shapes): its radius scales as
+    // the side of a cell of that volume.
+    let d = if snap.position.iter().all(|p| p[2] == 0.0) {
+        2
+    } else {
+        3
+    };
+    let cell = dp.powi(d);
+    let radius = |i: usize| match snap.volume.get(i) {
+        Some(&v) if v > 0.0 && cell > 0.0 => {
+            ((f64::from(r) * (v / cell).powf(1.0 / f64::from(d))).round() as i32).max(1)
+        }
+        _ => r,
+    };
+    let marker = |i: usize, colour: RGBColor| Circle::new(pts[i], radius(i), colour.filled());
     let broken = |i: usize| snap.broken_bonds[i] > 0;
     let interior = (0..pts.len()).filter(|&i| !snap.surface[i] && !broken(i));
     chart
@@ -491,6 +505,9 @@ impl Frame3d {
                     surface: keep.iter().map(|&i| s.surface[i]).collect(),
                     broken_bonds: keep.iter().map(|&i| s.broken_bonds[i]).collect(),
                     fixed: Vec::new(),
+                    volume: Vec::new(),
+                    normal: Vec::new(),
+                    area: Vec::new(),
                 }
             })
             .filter(|s| !s.position.is_empty())

@@ -23,10 +23,16 @@ pub(crate) fn check_lengths(snap: &ParticleSnapshot) -> Result<usize, String> {
         ("surface", snap.surface.len()),
         ("broken_bonds", snap.broken_bonds.len()),
     ];
-    // `fixed` may be empty (no particle held; snapshots written before it existed).
-    let fixed = [("fixed", snap.fixed.len())]
-        .into_iter()
-        .filter(|&(_, len)| len != 0);
+    // `fixed` may be empty (no particle held; snapshots written before it existed), and so may
+    // the volumes, normals and areas.
+    let fixed = [
+        ("fixed", snap.fixed.len()),
+        ("volume", snap.volume.len()),
+        ("normal", snap.normal.len()),
+        ("area", snap.area.len()),
+    ]
+    .into_iter()
+    .filter(|&(_, len)| len != 0);
     for (name, len) in lens.into_iter().chain(fixed) {
         if len != n {
             return Err(format!(
@@ -44,7 +50,10 @@ fn flat(v: &[[f64; 3]]) -> Vec<f64> {
 /// The snapshot as a `vtkio` model: an unstructured grid with one VTK_VERTEX cell per particle
 /// and the point data arrays `body` (Int32, the active scalars), `displacement` (Float64 x 3,
 /// the active vectors, m), `velocity` (Float64 x 3, m/s), `surface` (UInt8, 1 on the contact
-/// surface), `broken_bonds` (Int32) and `fixed` (UInt8, 1 where a boundary holds the particle).
+/// surface), `broken_bonds` (Int32) and `fixed` (UInt8, 1 where a boundary holds the particle);
+/// when known, `volume` (Float64, the volume the particle stands for, m^3), and of bodies filled
+/// from shapes `normal` (Float64 x 3, the solid's outward normal at surface particles) and
+/// `area` (Float64, the solid's surface area they carry, m^2).
 pub fn snapshot_to_vtk(snap: &ParticleSnapshot) -> Result<Vtk, String> {
     let n = check_lengths(snap)?;
     let to_i32 = |v: &[u32], what: &str| -> Result<Vec<i32>, String> {
@@ -70,6 +79,16 @@ pub fn snapshot_to_vtk(snap: &ParticleSnapshot) -> Result<Vtk, String> {
                 .collect::<Vec<u8>>(),
         ),
     ];
+    let mut point = point;
+    if !snap.volume.is_empty() {
+        point.push(Attribute::generic("volume", 1).with_data(snap.volume.clone()));
+    }
+    if !snap.normal.is_empty() {
+        point.push(Attribute::generic("normal", 3).with_data(flat(&snap.normal)));
+    }
+    if !snap.area.is_empty() {
+        point.push(Attribute::generic("area", 1).with_data(snap.area.clone()));
+    }
     let piece = UnstructuredGridPiece {
         points: flat(&snap.position).into(),
         cells: Cells {
@@ -174,4 +193,64 @@ impl PvdWriter {
         self.write_to(BufWriter::new(file))
             .map_err(|e| format!("{}: {e}", path.display()))
     }
+}
+
+/// Writes a body surface mesh (`mps run --surface`) as a `.vtu`: its triangles (lines in 2D)
+/// at their reference positions, with point data `displacement` (Float64 x 3, m, the active
+/// vectors: ParaView's "Warp By Vector" shows the deformed surface) and cell data `body`.
+pub fn write_surface_vtu(
+    path: &Path,
+    mesh: &crate::scene::surface::SurfaceMesh,
+    displacement: &[[f64; 3]],
+    time: f64,
+) -> Result<(), String> {
+    let n = mesh.points.len();
+    if displacement.len() != n || mesh.cell_body.len() != mesh.cells.len() {
+        return Err(format!(
+            "surface mesh has {n} points but {} displacements, {} cells but {} bodies",
+            displacement.len(),
+            mesh.cells.len(),
+            mesh.cell_body.len()
+        ));
+    }
+    let mut connectivity = Vec::new();
+    let mut offsets = Vec::with_capacity(mesh.cells.len());
+    let mut types = Vec::with_capacity(mesh.cells.len());
+    for c in &mesh.cells {
+        connectivity.extend(c.iter().map(|&i| i as u64));
+        offsets.push(connectivity.len() as u64);
+        types.push(if c.len() == 2 {
+            CellType::Line
+        } else {
+            CellType::Triangle
+        });
+    }
+    let body: Vec<i32> = mesh.cell_body.iter().map(|&b| b as i32).collect();
+    let piece = UnstructuredGridPiece {
+        points: flat(&mesh.points).into(),
+        cells: Cells {
+            cell_verts: VertexNumbers::XML {
+                connectivity,
+                offsets,
+            },
+            types,
+        },
+        data: Attributes {
+            point: vec![Attribute::vectors("displacement").with_data(flat(displacement))],
+            cell: vec![Attribute::scalars("body", 1).with_data(body)],
+        },
+    };
+    let vtk = Vtk {
+        version: Version::new_xml(1, 0),
+        byte_order: ByteOrder::LittleEndian,
+        title: format!("body surfaces at t = {time} s"),
+        file_path: None,
+        data: DataSet::inline(piece),
+    };
+    let file = File::create(path).map_err(|e| format!("creating {}: {e}", path.display()))?;
+    let mut out = BufWriter::new(file);
+    vtk.write_xml(&mut out)
+        .map_err(|e| format!("writing {}: {e}", path.display()))?;
+    out.flush()
+        .map_err(|e| format!("writing {}: {e}", path.display()))
 }

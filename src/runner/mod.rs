@@ -69,7 +69,7 @@ pub struct RunOptions {
 }
 
 /// What a run reports while it runs.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy)]
 pub enum RunEvent<'a> {
     /// The scene was built and will run; a warning of under-resolved geometry (before the
     /// first step).
@@ -84,6 +84,9 @@ pub enum RunEvent<'a> {
         seconds: f64,
         detail: &'a str,
     },
+    /// The simulation at an output sample (the initial state first, then after each `Sample`):
+    /// for output that needs more than the probes (`mps run --surface`).
+    State(&'a Simulation),
 }
 
 /// Relays the set-up's stages to a run's `on_event` (the set-up runs on the calling thread).
@@ -293,6 +296,7 @@ pub fn run_prepared(
         }
     };
     sample(&sim, &mut series);
+    on_event(RunEvent::State(&sim));
     let start = Instant::now();
     let n_out = (scene.end_time / scene.output_interval - 1e-9)
         .ceil()
@@ -318,6 +322,7 @@ pub fn run_prepared(
         }
         sample(&sim, &mut series);
         on_event(RunEvent::Sample(t));
+        on_event(RunEvent::State(&sim));
     }
     let wall = start.elapsed().as_secs_f64();
     let (mut frequency_hz, mut peak_m) = (None, None);

@@ -1,6 +1,6 @@
-//! Builds a physics World from a validated Scene: particles from boxes, groups and load regions
-//! from regions, probes located at their nearest particle.
-use super::fill::body_points;
+//! Builds a physics World from a validated Scene: particles from boxes and shapes, groups and
+//! load regions from regions and shapes, probes located at their nearest particle.
+use super::fill::body_fill;
 use super::{axis_index, err, BodyVelocity, Region, Scene, SceneError, SceneWarning};
 use crate::physics::boundary::GravityLaw;
 use crate::physics::dim::to3;
@@ -213,9 +213,16 @@ where
         let mut warnings = Vec::new();
         let mut box_ofs = Vec::new();
         for (k, b) in scene.bodies.iter().enumerate() {
-            let (pts, box_of) = body_points::<D>(scene, k)?;
+            let fill = body_fill::<D>(scene, k)?;
+            let (pts, box_of) = (fill.points, fill.box_of);
             warnings.extend(super::resolution::body_warnings::<D>(
                 scene, k, &pts, &box_of,
+            ));
+            warnings.extend(super::resolution::shape_warnings(
+                scene,
+                k,
+                fill.shape.as_ref().map(|s| s.volumes.as_slice()),
+                fill.lost_volume,
             ));
             let velocity = initial_velocity::<D>(scene, k, &pts)?;
             box_ofs.push(box_of);
@@ -226,22 +233,39 @@ where
                 material: b.material,
                 points: pts,
                 velocity,
+                shape: fill.shape,
             });
         }
-        let select = |body: &str, r: &Region, field: &str| -> Result<Vec<u32>, SceneError> {
+        let select = |body: &str,
+                      r: &Region,
+                      shape: Option<&super::Shape>,
+                      field: &str|
+         -> Result<Vec<u32>, SceneError> {
             let bi = scene.body_index(body).expect("validated");
+            let open = r.min.is_empty() && r.max.is_empty();
+            let solid = shape
+                .map(|s| super::shape::solid(field, s, D, scene.base_dir.as_deref()))
+                .transpose()?;
             let members: Vec<u32> = ranges[bi]
                 .clone()
-                .filter(|&i| inside(&bodies[bi].points[i - ranges[bi].start], r, 1e-9 * dp))
+                .filter(|&i| {
+                    let p = &bodies[bi].points[i - ranges[bi].start];
+                    (open || inside(p, r, 1e-9 * dp))
+                        && solid.as_ref().is_none_or(|s| {
+                            s.distance(super::shape::to3(p.as_slice())) <= 1e-6 * dp
+                        })
+                })
                 .map(|i| i as u32)
                 .collect();
             if members.is_empty() {
+                let what = match (open, shape.is_some()) {
+                    (false, false) => format!("region {:?}..{:?}", r.min, r.max),
+                    (true, _) => "the shape".to_string(),
+                    (false, true) => format!("region {:?}..{:?} and the shape", r.min, r.max),
+                };
                 return Err(err(
                     field,
-                    format!(
-                        "region {:?}..{:?} contains no particle of body '{body}'",
-                        r.min, r.max
-                    ),
+                    format!("{what} contains no particle of body '{body}'"),
                 ));
             }
             Ok(members)
@@ -251,7 +275,12 @@ where
             let members = select(
                 &g.body,
                 &g.region,
-                &format!("boundaries[{k}] ('{}').region", g.name),
+                g.shape.as_ref(),
+                &format!(
+                    "boundaries[{k}] ('{}').{}",
+                    g.name,
+                    if g.shape.is_some() { "shape" } else { "region" }
+                ),
             )?;
             let mut axes = [false; 3];
             match (&g.axes, g.kind) {
@@ -285,7 +314,12 @@ where
                 select(
                     &l.body,
                     &l.region,
-                    &format!("loads[{k}] ('{}').region", l.name),
+                    l.shape.as_ref(),
+                    &format!(
+                        "loads[{k}] ('{}').{}",
+                        l.name,
+                        if l.shape.is_some() { "shape" } else { "region" }
+                    ),
                 )?,
             ));
         }
@@ -364,7 +398,7 @@ where
                 None => scene
                     .bodies
                     .iter()
-                    .position(|b| b.boxes.iter().any(|r| inside(&point, r, 1e-9))),
+                    .position(|b| scene.body_contains(b, &p.point)),
             };
             let (particle, _) = world
                 .nearest_particle(&point, body.map(|b| b as u32))

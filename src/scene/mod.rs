@@ -1,17 +1,22 @@
-//! Scenes as serde data (JSON or TOML): bodies as boxes of particles, materials, boundary groups
-//! and load regions selected by region, gravity with the paper's ramp, probes, run settings.
-//! `Scene::validate` names the field and the problem for every bad input; `build` makes a World.
+//! Scenes as serde data (JSON or TOML): bodies as boxes and shapes (module `shape`: cylinders,
+//! spheres, half-space cuts, STL meshes) filled with particles, materials, boundary groups and
+//! load regions selected by region and shape, gravity with the paper's ramp, probes, run
+//! settings. `Scene::validate` names the field and the problem for every bad input; `build`
+//! makes a World.
 mod build;
 mod fill;
 pub mod limits;
 pub mod memory;
 pub mod resolution;
 pub mod schema;
+pub mod shape;
+pub mod surface;
 pub mod velocity;
 
 pub use build::{Model, ProbeAt};
 use limits::num;
 pub use resolution::SceneWarning;
+pub use shape::{Cylinder, HalfSpace, MeshSpec, Shape, Sphere};
 pub use velocity::{
     AngularVelocity, BodyVelocity, ModeShape, ModeShapeProfile, Omega, TableProfile, VelocityField,
     VelocityProfile,
@@ -20,7 +25,7 @@ pub use velocity::{
 use crate::physics::{ElasticModel, Material, MaterialLaw, SolverOptions};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A scene file: the bodies as boxes of particles, their materials, boundary groups, load
 /// regions, probes and the run's settings.
@@ -60,6 +65,10 @@ pub struct Scene {
     /// What to measure from the probe series (optional).
     #[serde(default)]
     pub analysis: Option<Analysis>,
+    /// The folder that relative mesh files (`bodies[].shapes[].mesh.file`) are read from: the
+    /// scene file's (set by `Scene::load`; an FMU's resources folder). Not part of the file.
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
 }
 
 /// Gravity: a vector (m/s^2) and an optional ramp.
@@ -73,8 +82,9 @@ pub struct Gravity {
     pub paper_ramp_period: Option<f64>,
 }
 
-/// An axis-aligned box (m), `dimension` components each.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+/// An axis-aligned box (m), `dimension` components each. As a selection (boundaries, loads)
+/// it may be left out when a `shape` selects: then `min` and `max` are empty.
+#[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Region {
     /// The lower corner (m), `dimension` components.
@@ -87,6 +97,12 @@ pub struct Region {
 /// Particles of all boxes of a body are bonded together; a particle closer than l0 / 4 to one of
 /// an earlier box is dropped. A later box with another lattice offset puts a layer of particles
 /// exactly on a face (used for supports: see docs/model.md).
+///
+/// A body with `shapes` or `cuts` is the union of its boxes and shapes less its cuts, filled on
+/// one lattice: the cell centres at `boxes[0].min` + (i + 1/2) l0 (at (i + 1/2) l0 without boxes)
+/// that lie inside. Each particle's volume (and mass) is the part of the solid in its cell,
+/// plus the parts of cells next to it whose centres fall outside, so the body's volume is the
+/// solid's (not a staircase's); surface particles carry the solid's outward normal and area.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Body {
@@ -94,8 +110,17 @@ pub struct Body {
     pub name: String,
     /// The body's elastic material.
     pub material: Material,
-    /// Extents (m); each side must be a whole number of particle spacings.
+    /// Extents (m); each side must be a whole number of particle spacings. May be empty when
+    /// `shapes` is not.
+    #[serde(default)]
     pub boxes: Vec<Region>,
+    /// Further solids of the body (their union with the boxes): `{"cylinder": ..}`,
+    /// `{"sphere": ..}`, `{"box": ..}`, `{"mesh": ..}` (module `shape`). Default none.
+    #[serde(default)]
+    pub shapes: Vec<Shape>,
+    /// Solids removed from the body (difference), half-spaces too. Default none.
+    #[serde(default)]
+    pub cuts: Vec<Shape>,
     /// Initial velocity: `[vx, vy(, vz)]` (m/s, the same for every particle), or a field
     /// `{"linear": [..], "angular": {"omega": .., "center": [..]}, "profiles": [..]}` summed
     /// at each particle's reference position (see [`BodyVelocity`], module `velocity`). Particles
@@ -116,7 +141,7 @@ pub enum BoundaryKind {
     Prescribed,
 }
 
-/// A boundary group: the particles of `body` inside `region`.
+/// A boundary group: the particles of `body` inside `region` and `shape`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Boundary {
@@ -126,8 +151,13 @@ pub struct Boundary {
     pub kind: BoundaryKind,
     /// Name of the body whose particles the group takes.
     pub body: String,
-    /// The box (m) whose particles of `body` belong to the group.
+    /// The box the group's particles lie in (m, with a 1e-9 l0 margin); may be left out when
+    /// `shape` selects.
+    #[serde(default)]
     pub region: Region,
+    /// A shape the group's particles lie in (with a 1e-6 l0 margin), besides `region`.
+    #[serde(default)]
+    pub shape: Option<Shape>,
     /// Axes ("x", "y", "z") for pinned and prescribed groups; default all.
     #[serde(default)]
     pub axes: Option<Vec<String>>,
@@ -154,7 +184,7 @@ pub struct MirrorSpec {
     pub normal: Vec<f64>,
 }
 
-/// A load region: the particles of `body` inside `region` share an external force.
+/// A load region: the particles of `body` inside `region` and `shape` share an external force.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LoadSpec {
@@ -162,8 +192,12 @@ pub struct LoadSpec {
     pub name: String,
     /// Name of the body whose particles share the force.
     pub body: String,
-    /// The box (m) whose particles of `body` share the force.
+    /// The box the particles lie in (m); may be left out when `shape` selects.
+    #[serde(default)]
     pub region: Region,
+    /// A shape the particles lie in (with a 1e-6 l0 margin), besides `region`.
+    #[serde(default)]
+    pub shape: Option<Shape>,
 }
 
 /// A named point of a body whose displacement is reported (reference coordinates, m).
@@ -175,7 +209,7 @@ pub struct Probe {
     /// The point (m), reference coordinates, `dimension` components; the nearest particle is
     /// reported.
     pub point: Vec<f64>,
-    /// The body the point belongs to; default: the body whose box contains it.
+    /// The body the point belongs to; default: the body whose boxes or shapes contain it.
     #[serde(default)]
     pub body: Option<String>,
 }
@@ -217,10 +251,16 @@ pub fn axis_index(name: &str) -> Option<usize> {
 
 impl Scene {
     /// Parses JSON: exactly one scene object, nothing but whitespace after it. A top-level
-    /// `"$schema"` (the schema's address, for editors) is passed over.
+    /// `"$schema"` (the schema's address, for editors) is passed over. Relative mesh files are
+    /// read from the current folder.
     pub fn from_json(text: &str) -> Result<Scene, SceneError> {
+        Scene::from_json_in(text, None)
+    }
+
+    /// Parses JSON whose relative mesh files are in `base_dir`.
+    pub fn from_json_in(text: &str, base_dir: Option<&Path>) -> Result<Scene, SceneError> {
         let mut de = serde_json::Deserializer::from_str(text);
-        let s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(&mut de))
+        let mut s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(&mut de))
             .map_err(|e| err(e.path().to_string(), in_words(&e.inner().to_string())))?;
         de.end().map_err(|e| {
             err(
@@ -230,13 +270,18 @@ impl Scene {
                 ),
             )
         })?;
+        s.base_dir = base_dir.map(Path::to_path_buf);
         s.validate()?;
         Ok(s)
     }
     /// Parses TOML.
     pub fn from_toml(text: &str) -> Result<Scene, SceneError> {
+        Scene::from_toml_in(text, None)
+    }
+    /// Parses TOML whose relative mesh files are in `base_dir`.
+    pub fn from_toml_in(text: &str, base_dir: Option<&Path>) -> Result<Scene, SceneError> {
         let de = toml::Deserializer::new(text);
-        let s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(de)).map_err(|e| {
+        let mut s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(de)).map_err(|e| {
             let field = e.path().to_string();
             let inner = e.into_inner();
             // One line: the reason and where (toml's own text adds a snippet of the file).
@@ -251,6 +296,7 @@ impl Scene {
                 format!("{}{at}", in_words(inner.message().trim_end())),
             )
         })?;
+        s.base_dir = base_dir.map(Path::to_path_buf);
         s.validate()?;
         Ok(s)
     }
@@ -270,9 +316,17 @@ impl Scene {
         }
         let text = std::fs::read_to_string(path)
             .map_err(|e| err("<file>", format!("cannot read {}: {e}", path.display())))?;
+        // Mesh files are relative to the scene file's folder.
+        let dir = path.parent().map(|d| {
+            if d.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                d
+            }
+        });
         match path.extension().and_then(|e| e.to_str()) {
-            Some("toml") => Scene::from_toml(&text),
-            _ => Scene::from_json(&text),
+            Some("toml") => Scene::from_toml_in(&text, dir),
+            _ => Scene::from_json_in(&text, dir),
         }
     }
     /// Serialises to pretty JSON (the canonical form the FMU's GUID hashes: no `$schema`).
@@ -379,11 +433,35 @@ impl Scene {
                     ),
                 ));
             }
-            if b.boxes.is_empty() {
-                return Err(err(format!("{f}.boxes"), "a body needs at least one box"));
+            if b.boxes.is_empty() && b.shapes.is_empty() {
+                return Err(err(
+                    format!("{f}.boxes"),
+                    "a body needs at least one box or shape (bodies[].shapes)",
+                ));
             }
             for (j, r) in b.boxes.iter().enumerate() {
                 self.cell_counts(r, &format!("{f}.boxes[{j}]"))?;
+            }
+            let base = self.base_dir.as_deref();
+            for (j, s) in b.shapes.iter().enumerate() {
+                shape::check(
+                    &format!("{f}.shapes[{j}]"),
+                    s,
+                    d,
+                    self.particle_spacing,
+                    true,
+                    base,
+                )?;
+            }
+            for (j, s) in b.cuts.iter().enumerate() {
+                shape::check(
+                    &format!("{f}.cuts[{j}]"),
+                    s,
+                    d,
+                    self.particle_spacing,
+                    false,
+                    base,
+                )?;
             }
             if let Some(v) = &b.velocity {
                 velocity::validate(&format!("{f}.velocity"), v, d, &b.boxes)?;
@@ -405,7 +483,7 @@ impl Scene {
             let f = format!("boundaries[{k}] ('{}')", g.name);
             self.body_index(&g.body)
                 .ok_or_else(|| err(format!("{f}.body"), format!("no body named '{}'", g.body)))?;
-            region(&format!("{f}.region"), &g.region, d)?;
+            self.selection(&f, &g.region, g.shape.as_ref())?;
             if self.boundaries[..k].iter().any(|o| o.name == g.name) {
                 return Err(err(format!("{f}.name"), "duplicate boundary name"));
             }
@@ -464,7 +542,7 @@ impl Scene {
             let f = format!("loads[{k}] ('{}')", l.name);
             self.body_index(&l.body)
                 .ok_or_else(|| err(format!("{f}.body"), format!("no body named '{}'", l.body)))?;
-            region(&format!("{f}.region"), &l.region, d)?;
+            self.selection(&f, &l.region, l.shape.as_ref())?;
             if self.loads[..k].iter().any(|o| o.name == l.name) {
                 return Err(err(format!("{f}.name"), "duplicate load region name"));
             }
@@ -490,11 +568,7 @@ impl Scene {
                     ),
                 ));
             }
-            let inside = |b: &Body| {
-                b.boxes.iter().any(|r| {
-                    (0..d).all(|i| p.point[i] >= r.min[i] - 1e-9 && p.point[i] <= r.max[i] + 1e-9)
-                })
-            };
+            let inside = |b: &Body| self.body_contains(b, &p.point);
             match &p.body {
                 Some(name) => {
                     let bi = self.body_index(name).ok_or_else(|| {
@@ -543,13 +617,83 @@ impl Scene {
             .sum()
     }
 
-    /// The particles the boxes of body `b` can hold (an upper bound, as `particle_bound`).
+    /// The particles the boxes of body `b` can hold (an upper bound, as `particle_bound`); for
+    /// a body with shapes, the cells of the lattice over the bounds of its solid.
     pub fn body_particle_bound(&self, b: &Body) -> f64 {
+        if !b.shapes.is_empty() || !b.cuts.is_empty() {
+            return match self.geometry(b) {
+                Ok(g) => fill::lattice_range(self, b, &g, self.dimension)
+                    .map(|(_, n)| n.iter().map(|&k| k as f64).product())
+                    .unwrap_or(f64::INFINITY),
+                Err(_) => 0.0,
+            };
+        }
         b.boxes
             .iter()
             .filter_map(|r| self.cell_counts(r, "").ok())
             .map(|c| c.iter().map(|&n| n as f64).product::<f64>())
             .sum()
+    }
+
+    /// The solid of a body with shapes: its boxes and shapes less its cuts (meshes read).
+    pub fn geometry(&self, b: &Body) -> Result<shape::Geometry, SceneError> {
+        let d = self.dimension;
+        let base = self.base_dir.as_deref();
+        let k = self.body_index(&b.name).unwrap_or(0);
+        let f = body_field(k, b);
+        let mut parts: Vec<shape::Solid> = b
+            .boxes
+            .iter()
+            .map(|r| shape::solid("", &Shape::Box(r.clone()), d, base))
+            .collect::<Result<_, _>>()?;
+        for (j, s) in b.shapes.iter().enumerate() {
+            parts.push(shape::solid(&format!("{f}.shapes[{j}]"), s, d, base)?);
+        }
+        let cuts = b
+            .cuts
+            .iter()
+            .enumerate()
+            .map(|(j, s)| shape::solid(&format!("{f}.cuts[{j}]"), s, d, base))
+            .collect::<Result<_, _>>()?;
+        Ok(shape::Geometry { parts, cuts })
+    }
+
+    /// Whether a point (m) lies in body b: in one of its boxes (1e-9 m margin), or for a body
+    /// with shapes in its solid (1e-6 l0 margin).
+    pub fn body_contains(&self, b: &Body, p: &[f64]) -> bool {
+        let d = self.dimension;
+        if b.shapes.is_empty() && b.cuts.is_empty() {
+            return b
+                .boxes
+                .iter()
+                .any(|r| (0..d).all(|i| p[i] >= r.min[i] - 1e-9 && p[i] <= r.max[i] + 1e-9));
+        }
+        self.geometry(b)
+            .is_ok_and(|g| g.distance(shape::to3(p)) <= 1e-6 * self.particle_spacing)
+    }
+
+    /// Checks the selection of a boundary group or load region (`f` names it): a region, a
+    /// shape, or both.
+    fn selection(&self, f: &str, r: &Region, s: Option<&Shape>) -> Result<(), SceneError> {
+        let d = self.dimension;
+        let open = r.min.is_empty() && r.max.is_empty();
+        match s {
+            Some(s) => {
+                if !open {
+                    region(&format!("{f}.region"), r, d)?;
+                }
+                shape::check(
+                    &format!("{f}.shape"),
+                    s,
+                    d,
+                    self.particle_spacing,
+                    false,
+                    self.base_dir.as_deref(),
+                )?;
+                Ok(())
+            }
+            None => region(&format!("{f}.region"), r, d),
+        }
     }
 
     pub fn body_index(&self, name: &str) -> Option<usize> {

@@ -8,7 +8,7 @@
 //!   nowhere thicker than 2 m particles (m = the lattice layers within re, 2 at re = 2.1 l0),
 //!   so every particle is near a surface and the operators' surface error governs the whole
 //!   body.
-use super::fill::body_points;
+use super::fill::body_fill;
 use super::limits::num;
 use super::{body_field, Scene};
 use crate::physics::bonds::is_bond;
@@ -64,8 +64,10 @@ where
     let full = full_neighbourhood::<D>(rf);
     let m = layers(rf);
     let needed = 2 * m + 1;
-    // Per box: particles with a singular neighbourhood, and the directions it lacks.
-    let nb = body.boxes.len();
+    // Per box (and the lattice of the shapes, last): particles with a singular neighbourhood,
+    // and the directions it lacks.
+    let shaped = !body.shapes.is_empty() || !body.cuts.is_empty();
+    let nb = body.boxes.len() + usize::from(shaped);
     let mut flat = vec![0usize; nb];
     let mut isolated = vec![0usize; nb];
     let mut missing = vec![[false; 3]; nb];
@@ -125,8 +127,12 @@ where
     };
     for j in 0..nb {
         let in_box = box_of.iter().filter(|&&b| b as usize == j).count();
-        let field = format!("{bf}.boxes[{j}]");
-        let r = &body.boxes[j];
+        let field = if j < body.boxes.len() {
+            format!("{bf}.boxes[{j}]")
+        } else {
+            format!("{bf}.shapes")
+        };
+        let r = body.boxes.get(j);
         if flat[j] > 0 {
             let axes: Vec<usize> = (0..D).filter(|&a| missing[j][a]).collect();
             let names: Vec<&str> = axes.iter().map(|&a| AXES[a]).collect();
@@ -143,10 +149,11 @@ where
                 format!(" (one particle thick along {})", names.join(" and "))
             };
             // The box's side across the layer (dp for a box one cell thick).
-            let thickness = axes
-                .iter()
-                .map(|&a| r.max[a] - r.min[a])
-                .fold(None, |t: Option<f64>, x| Some(t.map_or(x, |t| t.min(x))));
+            let thickness = r.and_then(|r| {
+                axes.iter()
+                    .map(|&a| r.max[a] - r.min[a])
+                    .fold(None, |t: Option<f64>, x| Some(t.map_or(x, |t| t.min(x))))
+            });
             out.push(SceneWarning {
                 field: field.clone(),
                 message: format!(
@@ -200,6 +207,58 @@ where
     out
 }
 
+/// The warnings of body k's shapes: meshes turned round, solid no particle took (`lost`, m^d),
+/// and the reduced accuracy of the second-order operator at a solid's faces (`volumes`: the
+/// particle volumes of a body filled from shapes).
+pub(crate) fn shape_warnings(
+    scene: &Scene,
+    k: usize,
+    volumes: Option<&[f64]>,
+    lost: f64,
+) -> Vec<SceneWarning> {
+    let b = &scene.bodies[k];
+    let bf = body_field(k, b);
+    let d = scene.dimension;
+    let dp = scene.particle_spacing;
+    let base = scene.base_dir.as_deref();
+    let mut out = Vec::new();
+    for (j, s) in b.shapes.iter().enumerate() {
+        if let Ok(w) = super::shape::check(&format!("{bf}.shapes[{j}]"), s, d, dp, true, base) {
+            out.extend(w);
+        }
+    }
+    for (j, s) in b.cuts.iter().enumerate() {
+        if let Ok(w) = super::shape::check(&format!("{bf}.cuts[{j}]"), s, d, dp, false, base) {
+            out.extend(w);
+        }
+    }
+    let Some(vol) = volumes else {
+        return out;
+    };
+    let total: f64 = vol.iter().sum();
+    if lost > 1e-6 * total {
+        out.push(SceneWarning {
+            field: format!("{bf}.shapes"),
+            message: format!(
+                "{} m^{d} of the solid ({:.2e} of it) lies more than two cells from every particle centre (slivers thinner than a particle) and is left out of the particles' volumes; refine particle_spacing (now {} m)",
+                num(lost),
+                lost / (total + lost),
+                num(dp)
+            ),
+        });
+    }
+    if scene.solver.model == crate::physics::ElasticModel::SecondOrder {
+        out.push(SceneWarning {
+            field: bf.clone(),
+            message: format!(
+                "body '{}' is filled from shapes: second_order keeps its plain fits at its faces (its summation-by-parts closure needs a body that fills one lattice box) and integrates with the particles' volumes of the solid, so near its faces the particle quadrature of the weak form is first order (docs/model.md, \"Bodies of any shape\")",
+                b.name
+            ),
+        });
+    }
+    out
+}
+
 impl Scene {
     /// Warnings of under-resolved geometry (see the module doc), in body order; empty for a
     /// scene that is not valid, whose memory estimate exceeds the memory available, or that is
@@ -219,8 +278,17 @@ impl Scene {
         Space: Dim<D>,
     {
         (0..self.bodies.len())
-            .flat_map(|k| match body_points::<D>(self, k) {
-                Ok((pts, box_of)) => body_warnings::<D>(self, k, &pts, &box_of),
+            .flat_map(|k| match body_fill::<D>(self, k) {
+                Ok(f) => {
+                    let mut w = body_warnings::<D>(self, k, &f.points, &f.box_of);
+                    w.extend(shape_warnings(
+                        self,
+                        k,
+                        f.shape.as_ref().map(|s| s.volumes.as_slice()),
+                        f.lost_volume,
+                    ));
+                    w
+                }
                 Err(_) => Vec::new(),
             })
             .collect()

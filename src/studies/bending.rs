@@ -136,6 +136,8 @@ fn beam_scene(
                 clamp_box,
             ],
             velocity: None,
+            shapes: vec![],
+            cuts: vec![],
         }],
         boundaries: vec![Boundary {
             name: "clamp".into(),
@@ -151,6 +153,7 @@ fn beam_scene(
                     n
                 },
             }),
+            shape: None,
         }],
         loads: vec![],
         probes: vec![Probe {
@@ -164,6 +167,7 @@ fn beam_scene(
             probe: "tip".into(),
             component: if dim == 3 { "z".into() } else { "y".into() },
         }),
+        base_dir: None,
     }
 }
 

@@ -155,6 +155,8 @@ pub fn case3_scene_with(
                     [cx + h, GAP + CUBE_SIDE, cz + h],
                 )],
                 velocity: Some(BodyVelocity::Uniform(vec![0.0, -CUBE_SPEED, 0.0])),
+                shapes: vec![],
+                cuts: vec![],
             },
             Body {
                 name: "block".into(),
@@ -168,6 +170,8 @@ pub fn case3_scene_with(
                 .take(if hold == Hold::Bridge { 3 } else { 2 })
                 .collect(),
                 velocity: None,
+                shapes: vec![],
+                cuts: vec![],
             },
         ],
         boundaries: [
@@ -178,6 +182,7 @@ pub fn case3_scene_with(
                 region: region([-0.5 * bx, -by, -walls], [0.5 * bx, 0.0, -tol]),
                 axes: None,
                 mirror: mirror(0.0, -1.0),
+                shape: None,
             },
             Boundary {
                 name: "top".into(),
@@ -186,6 +191,7 @@ pub fn case3_scene_with(
                 region: region([-0.5 * bx, -by, bz + tol], [0.5 * bx, 0.0, bz + walls]),
                 axes: None,
                 mirror: mirror(bz, 1.0),
+                shape: None,
             },
         ]
         .into_iter()
@@ -207,6 +213,7 @@ pub fn case3_scene_with(
         end_time: 1.7,
         output_interval: 0.01,
         analysis: None,
+        base_dir: None,
     }
 }
 

@@ -113,6 +113,8 @@ pub fn case1_scene(dp: f64, model: ElasticModel, dt: Option<f64>) -> Scene {
                 support_box,
             ],
             velocity: None,
+            shapes: vec![],
+            cuts: vec![],
         }],
         boundaries: vec![Boundary {
             name: "support".into(),
@@ -121,12 +123,14 @@ pub fn case1_scene(dp: f64, model: ElasticModel, dt: Option<f64>) -> Scene {
             region: support_region,
             axes: None,
             mirror: mirror.then(|| MirrorSpec { point: vec![0.0; 3], normal: vec![0.0, 0.0, 1.0] }),
+            shape: None,
         }],
         loads: vec![],
         probes,
         end_time: 1.0,
         output_interval: 0.01,
         analysis: None,
+        base_dir: None,
     }
 }
 
@@ -276,6 +280,8 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
                 support_box,
             ],
             velocity: None,
+            shapes: vec![],
+            cuts: vec![],
         }],
         boundaries: vec![
             Boundary {
@@ -285,6 +291,7 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
                 region: clamp_region,
                 axes: None,
                 mirror: mirror.then(|| MirrorSpec { point: vec![0.0; 3], normal: vec![-1.0, 0.0, 0.0] }),
+                shape: None,
             },
             Boundary {
                 name: "support".into(),
@@ -293,6 +300,7 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
                 region: support_region,
                 axes: Some(vec!["y".into(), "z".into()]),
                 mirror: mirror_support.then(|| MirrorSpec { point: vec![l, 0.0, 0.0], normal: vec![1.0, 0.0, 0.0] }),
+                shape: None,
             },
         ],
         loads: vec![],
@@ -300,6 +308,7 @@ pub fn case2_scene(dp: f64, model: ElasticModel, dt: Option<f64>, support: Suppo
         end_time: 0.6,
         output_interval: 0.001,
         analysis: Some(Analysis { probe: "max".into(), component: "z".into() }),
+        base_dir: None,
     }
 }
 

@@ -170,6 +170,8 @@ fn clamped_scene(
             name: "beam".into(),
             material: SHAPE_MATERIAL,
             boxes,
+            shapes: vec![],
+            cuts: vec![],
             velocity: None,
         }],
         boundaries: vec![Boundary {
@@ -177,6 +179,7 @@ fn clamped_scene(
             kind: BoundaryKind::Clamped,
             body: "beam".into(),
             region,
+            shape: None,
             axes: None,
             mirror,
         }],
@@ -192,6 +195,7 @@ fn clamped_scene(
             probe: "tip".into(),
             component: if dim == 3 { "z".into() } else { "y".into() },
         }),
+        base_dir: None,
     }
 }
 

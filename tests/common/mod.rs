@@ -44,6 +44,7 @@ where
         material: STEEL_LIKE,
         points: block::<D>(n, l0),
         velocity: Vect::<D>::zeros().into(),
+        shape: None,
     };
     World::new(
         l0,

@@ -193,6 +193,7 @@ fn second_order_forces_are_the_energy_gradient() {
             },
             points: pts.clone(),
             velocity: Vect::<3>::zeros().into(),
+            shape: None,
         }],
         vec![GroupInit {
             name: "clamp".into(),
@@ -268,6 +269,7 @@ fn forces_are_the_energy_gradient_with_mirror_faces() {
             },
             points: pts.clone(),
             velocity: Vect::<3>::zeros().into(),
+            shape: None,
         }],
         vec![
             GroupInit {

@@ -178,6 +178,7 @@ fn forces_are_the_energy_gradient_with_a_clamp_on_part_of_a_face() {
             },
             points: pts.clone(),
             velocity: Vect::<3>::zeros().into(),
+            shape: None,
         }],
         vec![GroupInit {
             name: "clamp".into(),

@@ -25,6 +25,8 @@ fn cube(name: &str, min: [f64; 3], side: f64, v: [f64; 3]) -> Body {
             max: min.iter().map(|m| m + side).collect(),
         }],
         velocity: Some(mps_solid::scene::BodyVelocity::Uniform(v.to_vec())),
+        shapes: vec![],
+        cuts: vec![],
     }
 }
 
@@ -43,6 +45,7 @@ fn scene(bodies: Vec<Body>, solver: SolverOptions) -> Scene {
         end_time: 1.0,
         output_interval: 0.01,
         analysis: None,
+        base_dir: None,
     }
 }
 
@@ -310,6 +313,8 @@ fn contact_and_fracture_do_not_depend_on_thread_count() {
                             max: vec![0.4, 0.4, 0.0],
                         }],
                         velocity: None,
+                        shapes: vec![],
+                        cuts: vec![],
                     },
                 ],
                 solver,
@@ -324,6 +329,7 @@ fn contact_and_fracture_do_not_depend_on_thread_count() {
                 },
                 axes: None,
                 mirror: None,
+                shape: None,
             }];
             let mut sim = Simulation::new(&sc).unwrap();
             sim.advance_to(0.04).unwrap();

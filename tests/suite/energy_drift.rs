@@ -38,6 +38,7 @@ fn undamped_cantilever_keeps_its_energy_over_100_periods() {
             material: MAT,
             points: pts.clone(),
             velocity: Vect::<2>::zeros().into(),
+            shape: None,
         }],
         vec![GroupInit {
             name: "clamp".into(),
@@ -137,6 +138,7 @@ fn collision(safety: f64, closing: f64) -> World<2> {
         material: MAT,
         points: pts,
         velocity: Vector2::new(v, 0.0).into(),
+        shape: None,
     };
     World::new(
         L0,

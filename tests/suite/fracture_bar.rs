@@ -75,6 +75,7 @@ fn bar_damped(
         material: BAR,
         points: pts,
         velocity: Vect::<3>::zeros().into(),
+        shape: None,
     };
     let w = World::new(
         L0,

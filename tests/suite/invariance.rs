@@ -62,6 +62,7 @@ where
             material: STEEL_LIKE,
             points,
             velocity: Vect::<D>::zeros().into(),
+            shape: None,
         }],
         groups,
         vec![],

@@ -31,5 +31,6 @@ mod paper_cases;
 mod physics_invariants;
 mod scene_schema;
 mod scene_validation;
+mod shapes;
 mod stability_step;
 mod torsion;

@@ -203,6 +203,9 @@ fn every_view_and_edge_cases() {
         surface: vec![],
         broken_bonds: vec![],
         fixed: vec![],
+        volume: vec![],
+        normal: vec![],
+        area: vec![],
     };
     write_vtu(&dir.0.join("empty.vtu"), &empty).unwrap();
     mps_solid::output::write_png(&dir.0.join("empty.png"), &empty, View::XY).unwrap();
@@ -259,6 +262,9 @@ fn two_bodies() -> ParticleSnapshot {
         surface: vec![true; n],
         broken_bonds: vec![0; n],
         fixed: vec![false; n],
+        volume: vec![],
+        normal: vec![],
+        area: vec![],
     }
 }
 

@@ -38,6 +38,7 @@ fn cantilever_g(nx: usize, g: f64, opts: SolverOptions) -> World<3> {
             material: MAT,
             points: pts,
             velocity: Vect::<3>::zeros().into(),
+            shape: None,
         }],
         vec![GroupInit {
             name: "clamp".into(),
@@ -165,6 +166,7 @@ where
             },
             points: block::<D>(n, L0),
             velocity: v.into(),
+            shape: None,
         }],
         Vec::<GroupInit>::new(),
         vec![],

@@ -56,6 +56,11 @@ enum Cmd {
         /// output sample (a serial pass over the bonds per sample).
         #[arg(long)]
         energy: bool,
+        /// Also write the bodies' surfaces as meshes with their displacements for ParaView:
+        /// surface_NNNN.vtu (triangles; lines in 2D) at up to 101 evenly spaced output samples
+        /// and surface.pvd listing them with their times.
+        #[arg(long)]
+        surface: bool,
         /// Print the result (including the series) as JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -165,8 +170,9 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             scene,
             out,
             energy,
+            surface,
             json,
-        } => run_command(&scene, &out, energy, json),
+        } => run_command(&scene, &out, energy, surface, json),
         Cmd::Pack {
             scenes,
             out,
@@ -269,6 +275,75 @@ impl Drop for StopOnInterrupt {
     }
 }
 
+/// `mps run --surface`: the body's surface mesh is made at the first state, then written with
+/// its displacements every `stride` output samples (at most 101 files, `surface_NNNN.vtu`) and
+/// listed in `surface.pvd` once the run completed.
+struct SurfaceFiles {
+    out: std::path::PathBuf,
+    samples: u64,
+    stride: u64,
+    index: u64,
+    mesh: Option<mps_solid::scene::surface::SurfaceMesh>,
+    pvd: mps_solid::output::PvdWriter,
+    error: Option<String>,
+}
+
+impl SurfaceFiles {
+    fn new(sc: &Scene, out: &std::path::Path) -> SurfaceFiles {
+        let samples = (sc.end_time / sc.output_interval - 1e-9).ceil().max(1.0) as u64;
+        SurfaceFiles {
+            out: out.to_path_buf(),
+            samples,
+            stride: samples.div_ceil(100).max(1),
+            index: 0,
+            mesh: None,
+            pvd: mps_solid::output::PvdWriter::new(),
+            error: None,
+        }
+    }
+
+    fn state(&mut self, sc: &Scene, sim: &mps_solid::Simulation) {
+        let k = self.index;
+        self.index += 1;
+        if self.error.is_some() || (!k.is_multiple_of(self.stride) && k != self.samples) {
+            return;
+        }
+        if self.mesh.is_none() {
+            match sim.surface_mesh(sc) {
+                Ok(m) => self.mesh = Some(m),
+                Err(e) => {
+                    self.error = Some(e.to_string());
+                    return;
+                }
+            }
+        }
+        let m = self.mesh.as_ref().expect("made above");
+        let name = format!(
+            "surface_{:04}.vtu",
+            k / self.stride + u64::from(!k.is_multiple_of(self.stride))
+        );
+        match mps_solid::output::write_surface_vtu(
+            &self.out.join(&name),
+            m,
+            &sim.surface_displacement(m),
+            sim.time(),
+        ) {
+            Ok(()) => self.pvd.add(sim.time(), name),
+            Err(e) => self.error = Some(e),
+        }
+    }
+
+    fn finish(self, complete: bool) -> Result<(), String> {
+        if let Some(e) = self.error {
+            return Err(format!("--surface: {e}"));
+        }
+        if complete {
+            self.pvd.write(&self.out.join("surface.pvd"))?;
+        }
+        Ok(())
+    }
+}
+
 /// `mps run`: the scene is built and checked first (a refusal touches no file), then the output
 /// files are opened as temporary files in --out (an unusable directory fails before the run),
 /// the run reports its progress on stderr, and the results replace the previous ones only when
@@ -280,6 +355,7 @@ fn run_command(
     scene: &std::path::Path,
     out: &std::path::Path,
     energy: bool,
+    surface: bool,
     json: bool,
 ) -> Result<ExitCode, String> {
     let sc = Scene::load(scene).map_err(|e| e.to_string())?;
@@ -301,10 +377,19 @@ fn run_command(
         energy,
         stop: Some(&STOP),
     };
-    let r = run_prepared(&sc, sim, opts, |e| progress.event(e));
+    let mut surface_files = surface.then(|| SurfaceFiles::new(&sc, out));
+    let r = run_prepared(&sc, sim, opts, |e| {
+        if let (RunEvent::State(sim), Some(f)) = (e, &mut surface_files) {
+            f.state(&sc, sim);
+        }
+        progress.event(e)
+    });
     progress.finish();
     // A run refused or failed without results: the temporary files go, nothing else changes.
     let r = r?;
+    if let Some(f) = surface_files {
+        f.finish(r.error.is_none())?;
+    }
     let mut summary = serde_json::to_value(&r).map_err(|e| e.to_string())?;
     if let Some(o) = summary.as_object_mut() {
         o.remove("series");

@@ -81,6 +81,8 @@ impl RunProgress {
             RunEvent::Step { time, steps } => self.step(time, steps),
             // The set-up ends before the run's progress starts (mps run prints its stages).
             RunEvent::Setup { .. } => {}
+            // Whole states are for outputs (mps run --surface), not for the progress line.
+            RunEvent::State(_) => {}
         }
     }
 

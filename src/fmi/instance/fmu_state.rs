@@ -32,7 +32,8 @@ pub struct FmuState {
 /// its strain energy law (`material.law`) and a boundary its mirror face (`mirror`, null when
 /// absent) in the state's scene. Version 5: the world's state carries the retained energy
 /// shares of particles whose re-fit at a break was limited and the energy released by breaks.
-/// Version 6: the state's scene carries `solver.max_setup_seconds`.
+/// Version 6: the state's scene carries `solver.max_setup_seconds`, a body its shapes and cuts,
+/// a boundary group and a load region their selecting shape (issue 26).
 const STATE_MAGIC: &[u8; 8] = b"MPSFMUST";
 const STATE_VERSION: u32 = 6;
 /// Largest serialised state accepted (bytes): bounds the allocations of a decoded state.
@@ -249,9 +250,12 @@ impl Instance {
                 payload.len()
             )));
         }
-        let s: FmuState = Self::bincode()
+        let mut s: FmuState = Self::bincode()
             .deserialize(payload)
             .map_err(|e| bad(&format!("cannot decode: {e}")))?;
+        // The folder of the scene's mesh files is not part of the data: it is this instance's
+        // resources folder.
+        s.params.base_dir = self.scene.base_dir.clone();
         self.check_state(&s)?;
         Ok(s)
     }

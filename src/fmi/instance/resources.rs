@@ -44,7 +44,8 @@ pub fn load_scene(dir: &Path) -> Result<Scene, String> {
     let path = dir.join("scene.json");
     let text = std::fs::read_to_string(&path)
         .map_err(|e| format!("cannot read the FMU's scene {}: {e}", path.display()))?;
-    Scene::from_json(&text)
+    // Mesh files (bodies[].shapes[].mesh.file) are relative to the resources folder.
+    Scene::from_json_in(&text, Some(dir))
         .map_err(|e| format!("the FMU's scene {} is invalid: {e}", path.display()))
 }
 

@@ -122,6 +122,24 @@ where
                     body.name
                 )));
             }
+            if let Some(s) = &body.shape {
+                let n = body.points.len();
+                if s.volumes.len() != n || s.normals.len() != n || s.areas.len() != n {
+                    return Err(SimError::Invalid(format!(
+                        "body '{}' (bodies[{b}]) has {n} points but {} volumes, {} normals and {} areas",
+                        body.name,
+                        s.volumes.len(),
+                        s.normals.len(),
+                        s.areas.len()
+                    )));
+                }
+                if let Some(v) = s.volumes.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+                    return Err(SimError::Invalid(format!(
+                        "body '{}' (bodies[{b}]): a particle volume is {v} m^d, not positive",
+                        body.name
+                    )));
+                }
+            }
         }
         if matches!(
             options.model,
@@ -163,8 +181,9 @@ where
             ElasticModel::Paper | ElasticModel::PaperLocal
         );
         for (b, body) in bodies.iter().enumerate() {
-            let m = body.material.density * volume;
             for (k, pt) in body.points.iter().enumerate() {
+                let m =
+                    body.material.density * body.shape.as_ref().map_or(volume, |s| s.volumes[k]);
                 let (v, w) = match &body.velocity {
                     InitialVelocity::Uniform(v) => (*v, <Space as Dim<D>>::ang_zero()),
                     InitialVelocity::PerParticle { v, w } => (
@@ -347,6 +366,23 @@ where
             &walls,
         );
         let mut op = op;
+        // Particle volumes of bodies filled from solids (the closure below replaces those of a
+        // body it closes).
+        let mut surface = Vec::new();
+        if bodies.iter().any(|b| b.shape.is_some()) {
+            surface = vec![(Vect::<D>::zeros(), 0.0); n];
+            let mut at = 0usize;
+            for body in &bodies {
+                if let Some(s) = &body.shape {
+                    for k in 0..body.points.len() {
+                        op.vol[at + k] = s.volumes[k];
+                        op.base_vol[at + k] = s.volumes[k];
+                        surface[at + k] = (s.normals[k], s.areas[k]);
+                    }
+                }
+                at += body.points.len();
+            }
+        }
         clock.done(
             SetupStage::OperatorFits,
             &format!("{} operator", options.model.name()),
@@ -454,6 +490,7 @@ where
             group_of,
             load_of,
             bad: vec![0; n],
+            surface,
             closure,
             clamp_faces,
         };

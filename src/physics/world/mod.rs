@@ -194,6 +194,21 @@ where
     pub material: Material,
     pub points: Vec<Vect<D>>,
     pub velocity: InitialVelocity<D>,
+    /// A body filled from a solid: its particles' volumes, normals and areas. None: every
+    /// particle has the volume l0^d.
+    pub shape: Option<ShapeFill<D>>,
+}
+
+/// What a body filled from a solid (scene shapes, issue 26) carries per particle, in the order
+/// of its points.
+#[derive(Clone, Debug)]
+pub struct ShapeFill<const D: usize> {
+    /// The solid's volume the particle stands for (m^d): its mass is the density times it.
+    pub volumes: Vec<f64>,
+    /// Outward unit normal of the solid's surface in the particle's cells (zero inside).
+    pub normals: Vec<Vect<D>>,
+    /// Area of that surface (m^(d-1); per m of depth in 2D; 0 inside).
+    pub areas: Vec<f64>,
 }
 
 /// Initial velocity of the particles of a body. Particles of a boundary group start with zero
@@ -289,6 +304,9 @@ where
     group_of: Vec<u32>,
     load_of: Vec<u32>,
     bad: Vec<u8>,
+    /// Per particle, the outward normal and area (m^(d-1)) of the solid's surface it carries
+    /// (bodies filled from shapes; zero elsewhere). Empty when no body has a shape.
+    pub surface: Vec<(Vect<D>, f64)>,
     /// Second-order operator: per body, its summation-by-parts closure at the free faces
     /// (module `sbp`: the solve's figures) or why the body keeps the plain fits. Empty for
     /// the other operators.

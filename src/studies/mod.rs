@@ -7,5 +7,6 @@ pub mod bending;
 pub mod case3;
 pub mod cases;
 pub mod linear;
+pub mod peers;
 pub mod programs;
 pub mod report;

@@ -7,6 +7,7 @@ pub mod clamp;
 pub mod closure;
 pub mod consistency;
 pub mod elastica;
+pub mod floor;
 pub mod fold;
 pub mod fracture;
 pub mod fracture_energy_dt;
@@ -22,6 +23,7 @@ pub const PROGRAMS: &[(&str, &str)] = &[
     ("closure", "the summation-by-parts closure's build: CG iterations, residuals and time per axis (`-- cube N`)"),
     ("consistency", "case 1's exact field against the discrete equilibrium: residual forces by layer"),
     ("elastica", "large deflection of the slender cantilever against the elastica and the finite-strain FEM"),
+    ("floor", "the machine's floor: multiply-add peak, triad bandwidth, and the least time per bond of each force pass"),
     ("fold", "the folding small2d strip that blew up at safety 0.8: deformation gradients and tangent spectrum"),
     ("fracture", "case 3's largest bond strain over time for the corrected and second-order operators"),
     ("fracture_energy_dt", "whether breaks create energy at time steps below the automatic one"),
@@ -50,6 +52,9 @@ pub fn run(name: &str, args: Vec<String>) -> Result<(), String> {
         }
         "elastica" => {
             elastica::main(args);
+        }
+        "floor" => {
+            floor::main(args);
         }
         "fold" => {
             fold::main(args);

@@ -15,6 +15,7 @@ pub mod particles;
 pub mod sbp;
 pub mod second_order;
 pub mod shape;
+pub mod stencils;
 pub mod world;
 
 /// Brings rayon's parallel-iterator traits into scope when the `parallel` feature is on.

@@ -26,4 +26,5 @@ mod paper_cases;
 mod physics_invariants;
 mod scene_validation;
 mod stability_step;
+mod stencil_classes;
 mod torsion;

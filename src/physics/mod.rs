@@ -15,6 +15,7 @@ pub mod particles;
 pub mod sbp;
 pub mod second_order;
 pub mod shape;
+pub mod stencil_build;
 pub mod stencils;
 pub mod world;
 

@@ -108,7 +108,7 @@ where
             retained: vec![1.0; n_particles],
         };
         if model == ElasticModel::SecondOrder {
-            op.second = SecondOrder::new(
+            op.second = SecondOrder::new_packed(
                 bonds,
                 l0,
                 re_factor,

@@ -15,6 +15,8 @@ pub mod particles;
 pub mod sbp;
 pub mod second_order;
 pub mod shape;
+pub mod stencil_build;
+pub mod stencils;
 pub mod world;
 
 pub mod par;

@@ -556,7 +556,10 @@ where
         for bnd in vb.of(si) {
             match world.get(&key(&vb.r0[bnd])) {
                 // The world's plain weight becomes the refined fit's plus the correction.
-                Some(&wb) => updates.push((wb, frame * (vso.g[bnd] + corr[bnd]) - so.g[wb])),
+                Some(&wb) => updates.push((
+                    wb,
+                    frame * (vso.g[bnd] + corr[bnd]) - so.grad_weight(bonds, i, wb),
+                )),
                 None => lost = lost.max(corr[bnd].amax()),
             }
         }

@@ -43,6 +43,7 @@ use super::par::*;
 use super::params::MaterialLaw;
 use super::particles::Particles;
 use super::shape::{shape_pinv, shape_tensor};
+use super::stencils::Stencils;
 use crate::par_iter_mut;
 
 /// Smallest ratio of the smallest to the largest singular value of the (scaled) moment matrix
@@ -53,10 +54,20 @@ pub const QUADRATIC_MIN_CONDITION: f64 = 1e-9;
 /// Per-bond weights and per-particle state of the second-order operator.
 #[derive(Clone, Debug, Default)]
 pub struct SecondOrder<const D: usize> {
-    /// Gradient weight g_b of each directed bond (1/m).
+    /// Construction form only ([`SecondOrder::new`], the closure's virtual body): gradient
+    /// weight g_b of each directed bond (1/m). Empty in the packed form the world uses
+    /// ([`SecondOrder::new_packed`]), whose weights are in `stencils`.
     pub g: Vec<Vect<D>>,
-    /// Hessian weights h_b (symmetric, 1/m^2): d_a d_c u = sum_b (u_j - u_i) h_b[a][c].
+    /// Construction form only: Hessian weights h_b (symmetric, 1/m^2):
+    /// d_a d_c u = sum_b (u_j - u_i) h_b[a][c].
     pub h: Vec<Mat<D>>,
+    /// Packed form: the weights of each particle, interned by set (module `stencils`).
+    pub stencils: Stencils<D>,
+    /// Packed form: each particle's set with all its bonds intact, as built (the closure
+    /// included): what a particle whose bonds come back (a restored state) takes again.
+    pub initial_class: Vec<u32>,
+    /// Whether the weights are in `stencils` (else in `g` and `h`).
+    pub packed: bool,
     /// Index of the reverse bond j -> i of each bond i -> j.
     pub mirror: Vec<u32>,
     /// Whether particle i has the quadratic fit (else: first-order fallback, h = 0).
@@ -91,7 +102,8 @@ pub struct SecondOrder<const D: usize> {
     /// Whether particle i is a follower.
     pub following: Vec<bool>,
     /// Summation-by-parts closure (module `sbp`): the correction of each bond's gradient
-    /// weight (1/m; empty without a closure).
+    /// weight (1/m; empty without a closure, and in the packed form once taken into the
+    /// closed particles' sets).
     pub closure_dg: Vec<Vect<D>>,
     /// Whether particle i belongs to a closed body.
     pub closable: Vec<bool>,
@@ -150,9 +162,10 @@ impl<const D: usize> SecondOrder<D>
 where
     Space: Dim<D>,
 {
-    /// Weights of all particles from their current (intact) bonds; `rigid` marks the particles
-    /// of clamped groups, `ghosts` the mirror faces' members, `followers` and `walls` the
-    /// clamped mirror faces' first layers and members.
+    /// Weights of all particles from their current (intact) bonds, in the construction form
+    /// (per bond in `g` and `h`); `rigid` marks the particles of clamped groups, `ghosts` the
+    /// mirror faces' members, `followers` and `walls` the clamped mirror faces' first layers
+    /// and members.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         bonds: &Bonds<D>,
@@ -164,9 +177,33 @@ where
         followers: &[Follower],
         walls: &[bool],
     ) -> Self {
+        let mut s = Self::flags(bonds, l0, re_factor, n, rigid, ghosts, followers, walls);
+        s.g = vec![Vect::<D>::zeros(); bonds.len()];
+        s.h = vec![Mat::<D>::zeros(); bonds.len()];
+        for i in 0..n {
+            s.refresh(bonds, l0, i);
+        }
+        s
+    }
+
+    /// Everything but the weights.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn flags(
+        bonds: &Bonds<D>,
+        l0: f64,
+        re_factor: f64,
+        n: usize,
+        rigid: &[bool],
+        ghosts: &[Ghost<D>],
+        followers: &[Follower],
+        walls: &[bool],
+    ) -> Self {
         let mut s = SecondOrder {
-            g: vec![Vect::<D>::zeros(); bonds.len()],
-            h: vec![Mat::<D>::zeros(); bonds.len()],
+            g: Vec::new(),
+            h: Vec::new(),
+            stencils: Stencils::default(),
+            initial_class: Vec::new(),
+            packed: false,
             mirror: mirror_index(bonds),
             quadratic: vec![false; n],
             span: vec![Mat::<D>::identity(); n],
@@ -208,9 +245,6 @@ where
         }
         for i in 0..n {
             s.behind[i] |= s.walls[i];
-        }
-        for i in 0..n {
-            s.refresh(bonds, l0, i);
         }
         s
     }
@@ -262,6 +296,12 @@ where
                 self.refresh(bonds, l0, i);
             }
         }
+        if self.packed {
+            // The closed particles' sets hold their corrections; a particle whose bonds come
+            // back takes its set as built (`initial_class`).
+            self.initial_class = self.stencils.class.clone();
+            self.closure_dg = Vec::new();
+        }
     }
 
     /// Weight of bond b in the fits and the residuals: w0, or 0 for a bond to a wall particle
@@ -280,6 +320,10 @@ where
     pub fn refresh(&mut self, bonds: &Bonds<D>, l0: f64, i: usize) {
         let m = basis_len(D);
         let range = bonds.of(i);
+        let first = range.start;
+        // This particle's weights, in its bond order.
+        let mut gw = vec![Vect::<D>::zeros(); range.len()];
+        let mut hw = vec![Mat::<D>::zeros(); range.len()];
         let mut mom = DMatrix::<f64>::zeros(m, m);
         let mut p = vec![0.0; m];
         for b in range.clone() {
@@ -308,8 +352,8 @@ where
                 for b in range {
                     let w0 = self.weight(bonds, b);
                     if w0 == 0.0 {
-                        self.g[b] = Vect::<D>::zeros();
-                        self.h[b] = Mat::<D>::zeros();
+                        gw[b - first] = Vect::<D>::zeros();
+                        hw[b - first] = Mat::<D>::zeros();
                         continue;
                     }
                     let s = quantised(&bonds.r0[b], l0);
@@ -338,8 +382,8 @@ where
                             k += 1;
                         }
                     }
-                    self.g[b] = g;
-                    self.h[b] = h;
+                    gw[b - first] = g;
+                    hw[b - first] = h;
                 }
             }
             None => {
@@ -350,27 +394,34 @@ where
                 for b in range {
                     let w0 = self.weight(bonds, b);
                     let r0 = bonds.r0[b];
-                    self.g[b] = if w0 == 0.0 {
+                    gw[b - first] = if w0 == 0.0 {
                         Vect::<D>::zeros()
                     } else {
                         k_inv * r0 * (w0 / r0.norm_squared())
                     };
-                    self.h[b] = Mat::<D>::zeros();
+                    hw[b - first] = Mat::<D>::zeros();
                 }
             }
         }
         let mut span = Mat::<D>::zeros();
         for b in bonds.of(i) {
             if self.weight(bonds, b) != 0.0 {
-                span += quantised(&bonds.r0[b], l0) * l0 * self.g[b].transpose();
+                span += quantised(&bonds.r0[b], l0) * l0 * gw[b - first].transpose();
             }
         }
+        // A closed particle of the packed form whose corrections were taken at set-up
+        // (`closure_dg` dropped) has its set as built.
+        let mut as_built = false;
         if let Some(&true) = self.closable.get(i) {
             let intact = bonds.of(i).all(|b| bonds.w0[b] > 0.0);
             self.closed[i] = intact;
             if intact {
-                for b in bonds.of(i) {
-                    self.g[b] += self.closure_dg[b];
+                if self.closure_dg.is_empty() {
+                    as_built = true;
+                } else {
+                    for b in bonds.of(i) {
+                        gw[b - first] += self.closure_dg[b];
+                    }
                 }
             }
         }
@@ -381,6 +432,17 @@ where
         } else {
             (span + span.transpose()) * 0.5
         };
+        if !self.packed {
+            let range = bonds.of(i);
+            self.g[range.clone()].copy_from_slice(&gw);
+            self.h[range].copy_from_slice(&hw);
+        } else if as_built {
+            self.stencils.class[i] = self.initial_class[i];
+        } else {
+            let mut values = Vec::new();
+            Stencils::<D>::pack(&gw, &hw, &mut values);
+            self.stencils.set(i, &values);
+        }
     }
 }
 
@@ -392,7 +454,7 @@ const QUANTUM_BITS: i32 = 30;
 /// moment matrix), so the round-off of r0 of a body placed away from the origin (1e-16 relative
 /// near it, 2e-9 l0 at 1e6 m) is first snapped to the same values, with the weights w(|s|)
 /// evaluated on the snapped vectors: invariance tests (tests/invariance.rs) hold to 1e-9.
-fn quantised<const D: usize>(r0: &Vect<D>, l0: f64) -> Vect<D> {
+pub(super) fn quantised<const D: usize>(r0: &Vect<D>, l0: f64) -> Vect<D> {
     let q = 2f64.powi(QUANTUM_BITS);
     (r0 / l0).map(|c| (c * q).round() / q)
 }
@@ -450,14 +512,17 @@ where
         let mut h = Mat::<D>::zeros();
         let mut g = [Mat::<D>::zeros(); D];
         let quad = self.quadratic[i];
+        debug_assert!(self.packed, "the force loop reads the packed form");
+        let ws = self.stencils.of(i);
+        let first = bonds.of(i).start;
         for b in bonds.of(i) {
             if self.weight(bonds, b) == 0.0 {
                 continue;
             }
             let du = uu(bonds.nbr[b] as usize) - ui;
-            h += du * self.g[b].transpose();
+            h += du * Stencils::<D>::g(ws, b - first).transpose();
             if quad {
-                let hb = &self.h[b];
+                let hb = &Stencils::<D>::h(ws, b - first);
                 for (a, ga) in g.iter_mut().enumerate() {
                     *ga += du * hb.row(a);
                 }
@@ -684,13 +749,14 @@ where
                     }
                     out[k] = rho + direct;
                 }
+                let ws = self.stencils.of(i);
                 for (k, b) in range.enumerate() {
                     if self.weight(bonds, b) == 0.0 {
                         continue;
                     }
-                    let mut d = a_i * self.g[b];
+                    let mut d = a_i * Stencils::<D>::g(ws, k);
                     if quad {
-                        let hb = &self.h[b];
+                        let hb = &Stencils::<D>::h(ws, k);
                         for (a, ba) in b_i.iter().enumerate() {
                             d += ba * hb.row(a).transpose();
                         }

@@ -14,19 +14,22 @@ use crate::physics::ElasticModel;
 /// during a run (contact pair lists) and the allocator.
 const BASE_BYTES: [u64; 2] = [512, 960];
 const BOND_BYTES: [u64; 2] = [32, 40];
-/// The same for `second_order`, which stores per bond its gradient and Hessian weights and
-/// their closure corrections, per particle its fits: measured 1390 / 2020 / 3680-4440 B per
-/// particle in 2D and 4150 / 7000-7550 / 18800-19250 B in 3D at re = 1.5 / 2.1 / 3 dp (large
-/// blocks), fitted as an upper bound by linear programming and raised by 2 %. The cost per
-/// bond is not linear in the bond count in 3D (it falls from 200 to 133 B per bond between re =
-/// 2.1 and 3 dp), so the estimate is tight at the default re = 2.1 dp (within 12 %) and up to
-/// 50 % high at re = 1.5 and 3 dp.
-const SECOND_ORDER_BASE_BYTES: [u64; 2] = [580, 2075];
-const SECOND_ORDER_BOND_BYTES: [u64; 2] = [143, 182];
+/// The same for `second_order`, which stores per bond its mirror index and per particle its
+/// fits and the index of its interned weight set (src/physics/stencils.rs: a lattice body has a
+/// few hundred distinct sets, so the weights no longer cost 96 B per bond in 3D): measured
+/// (tests/limits_memory.rs, `CALIBRATE=3:30:2.1,...`) 1337 B per particle in 2D at re = 2.1 dp
+/// (400^2 particles) and 3783 B in 3D (the slope between 30^3 and 40^3 blocks), 645 / 2838 B in
+/// 2D at re = 1.5 / 3 dp; fitted as an upper bound and raised by 2 %. Before the interning:
+/// 7000-7550 B per particle in 3D at re = 2.1 dp.
+const SECOND_ORDER_BASE_BYTES: [u64; 2] = [220, 1300];
+const SECOND_ORDER_BOND_BYTES: [u64; 2] = [90, 80];
 /// The summation-by-parts closure of a second_order body (src/physics/sbp.rs) builds the operator
-/// once more on a reduced box of at most 17 layers a side during the build: the estimate
-/// counts min(particles of the body, 17^D) particles twice.
+/// once more on a reduced box of at most 17 layers a side during the build, with its
+/// conjugate-gradient systems: the estimate counts min(particles of the body, 17^D) particles
+/// `CLOSURE_WEIGHT` times more (measured: 31 kB per reduced-box particle in 2D, 11 kB in 3D at
+/// re = 2.1 dp, from the peaks of blocks of different sizes).
 const CLOSURE_LAYERS: f64 = 17.0;
+const CLOSURE_WEIGHT: [f64; 2] = [26.0, 3.0];
 /// Fixed cost of a world whatever its size (bytes).
 const FIXED_BYTES: u64 = 1 << 20;
 
@@ -73,7 +76,7 @@ pub fn estimate(scene: &Scene) -> MemoryEstimate {
             .sum();
         (
             SECOND_ORDER_BASE_BYTES[d] + nb * SECOND_ORDER_BOND_BYTES[d],
-            particles + closure,
+            particles + CLOSURE_WEIGHT[d] * closure,
         )
     } else {
         (BASE_BYTES[d] + nb * BOND_BYTES[d], particles)

@@ -8,5 +8,6 @@ pub mod case3;
 pub mod cases;
 pub mod family;
 pub mod linear;
+pub mod peers;
 pub mod programs;
 pub mod report;

@@ -33,4 +33,5 @@ mod scene_schema;
 mod scene_validation;
 mod shapes;
 mod stability_step;
+mod stencil_classes;
 mod torsion;

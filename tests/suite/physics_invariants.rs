@@ -269,7 +269,11 @@ fn results_do_not_depend_on_thread_count() {
             )
         })
     };
-    for model in [ElasticModel::Corrected, ElasticModel::Paper] {
+    for model in [
+        ElasticModel::Corrected,
+        ElasticModel::Paper,
+        ElasticModel::SecondOrder,
+    ] {
         let (a, b) = (run(1, model), run(2, model));
         assert_eq!(a.0.to_bits(), b.0.to_bits());
         assert!(a.1.iter().zip(&b.1).all(|(p, q)| p

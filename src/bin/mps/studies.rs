@@ -63,6 +63,20 @@ pub enum StudyCmd {
         /// the 3D shapes.
         #[arg(long)]
         family: bool,
+        /// Only the peers: the benchmark cube through our operators and LAMMPS (peri/pmb,
+        /// peri/lps, bpm/rotational; skipped with a message without `lmp`), interleaved, on 1
+        /// and 2 threads. With --out, the table replaces the file's "## Peers" section.
+        #[arg(long)]
+        peers: bool,
+        /// Particles along the cube's side for --peers.
+        #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u64).range(4..=400))]
+        peers_n: u64,
+        /// Timed steps per run for --peers.
+        #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..))]
+        peers_steps: u64,
+        /// Rounds of --peers (the codes interleaved in each).
+        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=20))]
+        peers_rounds: u64,
     },
     /// Run the paper's case 3 (cube hits a block; contact and fracture), both variants by default.
     Case3 {
@@ -270,6 +284,10 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
             plot,
             fine,
             family,
+            peers,
+            peers_n,
+            peers_steps,
+            peers_rounds,
         } => {
             use mps_solid::studies::bench;
             // The output paths are checked before the minutes of work.
@@ -285,6 +303,19 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
                 println!("{md}");
                 if let Some(path) = out {
                     std::fs::write(&path, md)
+                        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                }
+                return Ok(ExitCode::SUCCESS);
+            }
+            if peers {
+                use mps_solid::studies::peers;
+                let (n, dp, dt) = (peers_n as usize, 0.025, 1e-5);
+                let rows = peers::run_peers(n, dp, dt, peers_steps, peers_rounds as usize);
+                let md = peers::peers_markdown(&rows, n, dp, dt, peers_steps);
+                println!("{md}");
+                if let Some(path) = out {
+                    let old = std::fs::read_to_string(&path).unwrap_or_default();
+                    std::fs::write(&path, peers::replace_section(&old, &md))
                         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
                 }
                 return Ok(ExitCode::SUCCESS);

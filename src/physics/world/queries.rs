@@ -150,8 +150,8 @@ where
                     continue;
                 }
                 let df = fj(self.bonds.nbr[b] as usize) - fi;
-                g += df * so.g[b].transpose();
-                q += df * d.dot(&(so.h[b] * d));
+                g += df * so.grad_weight(&self.bonds, i, b).transpose();
+                q += df * d.dot(&(so.hess_weight(&self.bonds, i, b) * d));
             }
             return fi + g * d + q * 0.5;
         }

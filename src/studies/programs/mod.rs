@@ -8,6 +8,7 @@ pub mod closure;
 pub mod consistency;
 pub mod elastica;
 pub mod family;
+pub mod floor;
 pub mod fold;
 pub mod fracture;
 pub mod fracture_energy_dt;
@@ -24,6 +25,7 @@ pub const PROGRAMS: &[(&str, &str)] = &[
     ("consistency", "case 1's exact field against the discrete equilibrium: residual forces by layer"),
     ("elastica", "large deflection of the slender cantilever against the elastica and the finite-strain FEM"),
     ("family", "issue 24's family written as a user would (clamps without mirror, stepped, L-bracket, hole): linearised f1 and static deflection against the FEM (`-- 4 8`, THREE_D=1 adds 3D)"),
+    ("floor", "the machine's floor: multiply-add peak, triad bandwidth, and the least time per bond of each force pass"),
     ("fold", "the folding small2d strip that blew up at safety 0.8: deformation gradients and tangent spectrum"),
     ("fracture", "case 3's largest bond strain over time for the corrected and second-order operators"),
     ("fracture_energy_dt", "whether breaks create energy at time steps below the automatic one"),
@@ -55,6 +57,9 @@ pub fn run(name: &str, args: Vec<String>) -> Result<(), String> {
         }
         "family" => {
             family::main(args);
+        }
+        "floor" => {
+            floor::main(args);
         }
         "fold" => {
             fold::main(args);

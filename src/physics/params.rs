@@ -139,8 +139,8 @@ pub struct SolverOptions {
     /// more is refused before it starts, with its estimated wall time; raise it in the scene
     /// (`"solver": {"max_particle_steps": 100000000000}`) for a longer run (>= 1).
     pub max_particle_steps: u64,
-    /// Most wall-clock seconds the set-up of the model may take (work guard of the set-up:
-    /// bonds, operator fits, closure, stable step), s. Estimated after the bonds are found and
+    /// Most wall-clock time the set-up of the model may take (s; work guard of the set-up:
+    /// bonds, operator fits, closure, stable step). Estimated after the bonds are found and
     /// refused then when the estimate is above it; checked again after every stage.
     pub max_setup_seconds: f64,
     /// Critical bond strain eps_max of Eq. (42) (-): a bond whose strain

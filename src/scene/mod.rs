@@ -281,21 +281,22 @@ impl Scene {
     /// Parses TOML whose relative mesh files are in `base_dir`.
     pub fn from_toml_in(text: &str, base_dir: Option<&Path>) -> Result<Scene, SceneError> {
         let de = toml::Deserializer::new(text);
-        let mut s: Scene = serde_path_to_error::deserialize(schema::SkipSchemaKey(de)).map_err(|e| {
-            let field = e.path().to_string();
-            let inner = e.into_inner();
-            // One line: the reason and where (toml's own text adds a snippet of the file).
-            let at = inner.span().map_or(String::new(), |span| {
-                let before = &text[..span.start.min(text.len())];
-                let line = before.matches('\n').count() + 1;
-                let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-                format!(" (line {line}, column {column})")
-            });
-            err(
-                field,
-                format!("{}{at}", in_words(inner.message().trim_end())),
-            )
-        })?;
+        let mut s: Scene =
+            serde_path_to_error::deserialize(schema::SkipSchemaKey(de)).map_err(|e| {
+                let field = e.path().to_string();
+                let inner = e.into_inner();
+                // One line: the reason and where (toml's own text adds a snippet of the file).
+                let at = inner.span().map_or(String::new(), |span| {
+                    let before = &text[..span.start.min(text.len())];
+                    let line = before.matches('\n').count() + 1;
+                    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+                    format!(" (line {line}, column {column})")
+                });
+                err(
+                    field,
+                    format!("{}{at}", in_words(inner.message().trim_end())),
+                )
+            })?;
         s.base_dir = base_dir.map(Path::to_path_buf);
         s.validate()?;
         Ok(s)

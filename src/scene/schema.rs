@@ -202,7 +202,7 @@ fn set_bound(s: &mut Map<String, Value>, b: &Bound) {
 /// Units the doc comments give, in parentheses: "(m)", "(kg/m^3)", "(m/s, the same ...)", "(-)"
 /// for dimensionless numbers.
 const UNITS: &[&str] = &[
-    "m", "s", "Pa", "kg/m^3", "kg/m3", "m/s", "m/s^2", "1/s", "rad/s", "rad", "N", "-",
+    "m", "s", "Pa", "kg/m^3", "kg/m3", "m/s", "m/s^2", "1/s", "rad/s", "rad", "deg", "N", "-",
 ];
 
 /// The unit a description gives: the first parenthesis that opens with one of `UNITS`.

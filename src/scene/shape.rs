@@ -43,7 +43,7 @@ pub struct Cylinder {
     pub center: Vec<f64>,
     /// Radius (m).
     pub radius: f64,
-    /// Direction of the axis (any length, not zero; 3 components). 3D only.
+    /// Direction of the axis (-; any length, not zero; 3 components). 3D only.
     #[serde(default)]
     pub axis: Option<Vec<f64>>,
     /// Length along the axis (m). 3D only.
@@ -68,7 +68,7 @@ pub struct Sphere {
 pub struct HalfSpace {
     /// A point of the bounding plane (m), `dimension` components.
     pub point: Vec<f64>,
-    /// Outward normal of the solid side (any length, not zero), `dimension` components.
+    /// Outward normal of the solid side (-; any length, not zero), `dimension` components.
     pub normal: Vec<f64>,
 }
 
@@ -87,7 +87,7 @@ pub struct MeshSpec {
     /// Translation after scaling and rotation (m), 3 components. Default none.
     #[serde(default)]
     pub translate: Option<Vec<f64>>,
-    /// Rotation angles about x, y, z (degrees), applied in that order about fixed axes.
+    /// Rotation angles about x, y, z (deg), applied in that order about fixed axes.
     /// Default none.
     #[serde(default)]
     pub rotate_deg: Option<Vec<f64>>,

@@ -140,6 +140,8 @@ fn set_up_stages_are_told_as_they_end() {
         [
             "particles",
             "bonds",
+            // small2d's clamp: its face is found and followers hold it (issue 24).
+            "clamps",
             "operator fits",
             "closure",
             "stable step",

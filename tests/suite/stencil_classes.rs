@@ -5,10 +5,24 @@
 use mps_solid::physics::ElasticModel;
 use mps_solid::scene::Model;
 use mps_solid::studies::peers::cube_scene;
+use mps_solid::Scene;
+
+/// The benchmark cube with a step on top (a second box over half its top face): a body the
+/// boundary closure does not serve, so each particle keeps its lattice fit. (A body the closure
+/// serves gets per-particle corrections, shared only along the layers its reduced box repeats,
+/// i.e. in bodies more than 17 particles across.)
+fn on_a_step(scene: &mut Scene) {
+    let side = scene.bodies[0].boxes[0].max[0];
+    scene.bodies[0].boxes.push(mps_solid::scene::Region {
+        min: vec![0.0, 0.0, side],
+        max: vec![side / 2.0, side, side + 3.0 * scene.particle_spacing],
+    });
+}
 
 #[test]
 fn a_lattice_cube_has_few_weight_sets_and_each_is_the_particles_own_fit() {
-    let scene = cube_scene(10, 0.025, ElasticModel::SecondOrder, 1e-5);
+    let mut scene = cube_scene(10, 0.025, ElasticModel::SecondOrder, 1e-5);
+    on_a_step(&mut scene);
     let m = Model::<3>::build(&scene).unwrap();
     let w = &m.world;
     let so = &w.op.second;
@@ -37,7 +51,8 @@ fn a_lattice_cube_has_few_weight_sets_and_each_is_the_particles_own_fit() {
 
 #[test]
 fn a_particle_that_loses_bonds_gets_its_own_set_and_gets_its_built_set_back() {
-    let scene = cube_scene(8, 0.025, ElasticModel::SecondOrder, 1e-5);
+    let mut scene = cube_scene(8, 0.025, ElasticModel::SecondOrder, 1e-5);
+    on_a_step(&mut scene);
     let mut m = Model::<3>::build(&scene).unwrap();
     let w = &mut m.world;
     // An interior particle shares its set with others.

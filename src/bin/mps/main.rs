@@ -7,9 +7,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mps_solid::physics::ElasticModel;
 mod run_outputs;
 mod run_progress;
-use mps_solid::runner::{
-    energy_csv, prepare_with, run_prepared, series_csv, RunEvent, RunOptions,
-};
+use mps_solid::runner::{energy_csv, prepare_with, run_prepared, series_csv, RunEvent, RunOptions};
 use mps_solid::Scene;
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -336,7 +336,7 @@ where
         }
         if !mirrors.is_empty() || !followers.is_empty() {
             clock.done(
-                SetupStage::MirrorClamps,
+                SetupStage::Clamps,
                 &format!("{} ghosts, {} followers", ghosts.len(), followers.len()),
             )?;
         }

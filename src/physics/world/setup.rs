@@ -13,8 +13,9 @@ pub enum SetupStage {
     Particles,
     /// The bonds: particle pairs closer than re (module `bonds`).
     Bonds,
-    /// Mirror clamps: the ghosts and followers of mirror faces.
-    MirrorClamps,
+    /// Clamps: the ghosts of mirror faces and the followers of clamped faces (given by `mirror`
+    /// or found from the geometry).
+    Clamps,
     /// The elastic operator's per-particle fits.
     OperatorFits,
     /// The second-order operator's summation-by-parts closure (module `sbp`).
@@ -30,7 +31,7 @@ impl SetupStage {
         match self {
             SetupStage::Particles => "particles",
             SetupStage::Bonds => "bonds",
-            SetupStage::MirrorClamps => "mirror clamps",
+            SetupStage::Clamps => "clamps",
             SetupStage::OperatorFits => "operator fits",
             SetupStage::Closure => "closure",
             SetupStage::StableStep => "stable step",

@@ -6,8 +6,7 @@
 //!
 //! The binary is built for the baseline x86-64 instruction set (SSE2: 2 f64 or 4 f32 lanes, no
 //! FMA instruction), like the FMU's; the figures are what this build's loops can reach.
-#[allow(unused_imports)]
-use crate::physics::par::*;
+use rayon::prelude::*;
 use std::hint::black_box;
 use std::time::Instant;
 

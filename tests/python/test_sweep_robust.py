@@ -11,6 +11,7 @@ with exit status 2 and no traceback. The tests with a real run need a built targ
 import csv
 import inspect
 import json
+import re
 import os
 import signal
 import subprocess
@@ -238,7 +239,9 @@ def to_toml(d: dict, prefix: str = "") -> list[str]:
         if isinstance(v, dict) or (isinstance(v, list) and v and all(isinstance(e, dict) for e in v)):
             tables.append((k, v))
         else:
-            lines.append(f"{k} = {json.dumps(v)}")
+            # A key that is not bare ("$schema") is a quoted string.
+            key = k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else json.dumps(k)
+            lines.append(f"{key} = {json.dumps(v)}")
     for k, v in tables:
         for e in (v if isinstance(v, list) else [v]):
             lines.append(f"[[{prefix}{k}]]" if isinstance(v, list) else f"[{prefix}{k}]")

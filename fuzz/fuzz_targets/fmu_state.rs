@@ -70,12 +70,28 @@ fuzz_target!(init: {
     }
     let back = inst.get_fmu_state().expect("get a state just restored");
     let back_bytes = inst.serialize_fmu_state(&back).expect("serialise");
-    assert!(
-        back_bytes == bytes || mps_fuzz::same_state(&state, &back),
-        "get_fmu_state after set_fmu_state differs from the state set: {} ({})",
-        mps_fuzz::first_difference(&state, &back),
-        mps_fuzz::first_byte_difference(&bytes, &back_bytes)
-    );
+    if back_bytes != bytes && !mps_fuzz::same_state(&state, &back) {
+        // The particles that follow a clamp (the layers behind a clamped face) are derived
+        // from the particles they follow on restore: a state from elsewhere whose followers
+        // disagree comes back with them re-derived, and nothing else may change. The state
+        // read back is then restored as it is (a fixed point).
+        let changed = mps_fuzz::differences(&state, &back);
+        assert!(
+            changed.iter().all(|p| mps_fuzz::is_particle_motion(p)),
+            "get_fmu_state after set_fmu_state differs from the state set beyond re-derived \
+             followers: {} ({})",
+            mps_fuzz::first_difference(&state, &back),
+            mps_fuzz::first_byte_difference(&bytes, &back_bytes)
+        );
+        inst.set_fmu_state(&back).expect("restore a state just read back");
+        let again = inst.get_fmu_state().expect("get");
+        let again_bytes = inst.serialize_fmu_state(&again).expect("serialise");
+        assert!(
+            again_bytes == back_bytes || mps_fuzz::same_state(&back, &again),
+            "restoring a restored state changes it: {}",
+            mps_fuzz::first_difference(&back, &again)
+        );
+    }
     if all_inputs() {
         // Needs a step-count limit: a mutated state can make the stable step tiny.
         let t = inst.time();

@@ -96,6 +96,44 @@ pub fn first_difference<T: serde::Serialize>(a: &T, b: &T) -> String {
     }
 }
 
+/// Every place where two serialisable values differ (JSON paths), in order.
+pub fn differences<T: serde::Serialize>(a: &T, b: &T) -> Vec<String> {
+    fn walk(a: &serde_json::Value, b: &serde_json::Value, path: String, out: &mut Vec<String>) {
+        use serde_json::Value::{Array, Object};
+        match (a, b) {
+            (Object(x), Object(y)) if x.len() == y.len() => {
+                for (k, v) in x {
+                    walk(v, y.get(k).unwrap_or(&serde_json::Value::Null), format!("{path}.{k}"), out);
+                }
+            }
+            (Array(x), Array(y)) if x.len() == y.len() => {
+                for (i, (v, w)) in x.iter().zip(y).enumerate() {
+                    walk(v, w, format!("{path}[{i}]"), out);
+                }
+            }
+            _ if a == b => {}
+            _ => out.push(path),
+        }
+    }
+    let mut out = Vec::new();
+    match (serde_json::to_value(a), serde_json::to_value(b)) {
+        (Ok(x), Ok(y)) => walk(&x, &y, String::new(), &mut out),
+        _ => out.push("(not representable as JSON)".into()),
+    }
+    out
+}
+
+/// Whether a JSON path of [`differences`] names a particle's displacement or velocity
+/// (`.sim.D2.u[i]...`, `.sim.D3.v[i]...`): the entries a restore may re-derive, since the
+/// particles that follow a clamp take them from the particles they follow.
+pub fn is_particle_motion(path: &str) -> bool {
+    ["2", "3"].iter().any(|d| {
+        [".u[", ".v["]
+            .iter()
+            .any(|f| path.starts_with(&format!(".sim.D{d}{f}")))
+    })
+}
+
 /// Whether two states are the same up to the sign of zeros and NaN payloads (what their serde
 /// forms compare): a restored state may come back with +0.0 where it held -0.0, because the
 /// instance compares parameters with `==` (harmless: -0.0 and 0.0 are the same parameter).

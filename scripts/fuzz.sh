@@ -8,6 +8,7 @@
 #   FUZZ_TARGETS="scene" scripts/fuzz.sh     # some targets only
 #   FUZZ_UPDATE_CORPUS=1 scripts/fuzz.sh     # merge what the run found into fuzz/corpus
 #   MPS_FUZZ_ALL=1 scripts/fuzz.sh           # also inputs of known open defects (fuzz/README.md)
+#   FUZZ_BUILD_ONLY=1 scripts/fuzz.sh        # build the targets and stop (test-all.sh does this early)
 #
 # A crash leaves its input in fuzz/artifacts/<target>/; reproduce it with
 #   fuzz/target/<host>/release/<target> fuzz/artifacts/<target>/crash-...
@@ -44,6 +45,10 @@ if ! cargo +nightly fuzz build -s none --codegen-units 4; then
     echo "fuzz: the targets do not build"
     echo "fuzz: 0 passed, 1 failed"
     exit 1
+fi
+if [ "${FUZZ_BUILD_ONLY:-0}" = 1 ]; then
+    echo "fuzz: targets built ($((SECONDS - t1)) s)"
+    exit 0
 fi
 host=$(rustc +nightly -vV | sed -n 's/^host: //p')
 bin="$root/fuzz/target/$host/release"

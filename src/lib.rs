@@ -11,6 +11,7 @@
 //! holds the paper's cases with their references, the benchmark and the accuracy studies. The
 //! product never depends on it.
 pub mod fmi;
+#[cfg(feature = "output")]
 pub mod output;
 pub mod physics;
 pub mod runner;

@@ -426,6 +426,42 @@ fn inverted_meshes_are_turned_round_with_a_warning() {
     assert!((vol / 1.25e-4 - 1.0).abs() < 2e-3, "{vol}");
 }
 
+/// The warning of a body filled from shapes is for a user who knows the scene format, not the
+/// solver: it names the body, the size of the effect and the remedy in scene terms, and points to
+/// no file (an FMU user has only the FMU). Issue 24/27: the old text said "summation-by-parts
+/// closure", "plain fits" and "docs/model.md".
+#[test]
+fn the_shape_accuracy_warning_speaks_the_scene_format() {
+    let mut v = one_body(
+        3,
+        0.01,
+        json!({"shapes": [{"cylinder": {"axis": [1.0, 0.0, 0.0], "center": [0.15, 0.0, 0.0],
+                                        "radius": 0.05, "length": 0.3}}]}),
+    );
+    v["solver"] = json!({});
+    let s = scene_in(&v, None).unwrap();
+    let w = s.warnings();
+    let shape_warning = w
+        .iter()
+        .find(|w| w.field == "bodies[0] ('part')" && w.message.contains("filled from shapes"))
+        .unwrap_or_else(|| panic!("no shape accuracy warning: {w:?}"));
+    let m = &shape_warning.message;
+    for jargon in [
+        "closure",
+        "fits",
+        "summation",
+        "quadrature",
+        "docs/",
+        ".md",
+        "second_order",
+    ] {
+        assert!(!m.contains(jargon), "'{jargon}' in: {m}");
+    }
+    for wanted in ["'part'", "%", "particle_spacing", "0.01 m"] {
+        assert!(m.contains(wanted), "'{wanted}' missing from: {m}");
+    }
+}
+
 #[test]
 fn bad_shapes_are_errors_naming_the_field_and_reason() {
     let err = |body: Value, d: usize| {

@@ -6,7 +6,7 @@
 //! alike. Prints the median step time of each and their ratios.
 //!
 //! ```text
-//! cargo run --release --example fmu_pool_bench -- [SCENE [BLOCKS [STEPS [OLD_LIB OLD_GUID]]]]
+//! cargo bench --bench fmu_pool -- [SCENE [BLOCKS [STEPS [OLD_LIB OLD_GUID]]]]
 //! ```
 //! The library measured is target/release/libmps_solid.so (`MPS_BENCH_LIB` overrides).
 //! Defaults: scenes/case2_beam.json (3,645 particles), 15 blocks of 20 steps. OLD_GUID is the
@@ -105,7 +105,8 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
+    // `cargo bench` appends `--bench` to the arguments of a bench without libtest's harness.
+    let args: Vec<String> = std::env::args().filter(|a| a != "--bench").collect();
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let path = args
         .get(1)

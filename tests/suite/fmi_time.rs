@@ -29,15 +29,7 @@ fn instance_with(logger: Arc<dyn Logger>) -> Instance {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("scene.json"), scene.to_json()).unwrap();
     let uri = format!("file://{}", dir.display());
-    let i = Instance::instantiate(
-        "time",
-        true,
-        &guid(&scene),
-        Some(&uri),
-        logger,
-        false,
-    )
-    .unwrap();
+    let i = Instance::instantiate("time", true, &guid(&scene), Some(&uri), logger, false).unwrap();
     std::fs::remove_dir_all(&dir).ok();
     i
 }
@@ -182,14 +174,21 @@ fn a_do_step_of_minutes_warns_the_host_before_it_starts() {
     i.exit_initialization_mode().unwrap();
     // An ordinary step (200 sub-steps) says nothing.
     i.do_step(0.0, 2e-6).unwrap();
-    assert!(log.0.lock().unwrap().is_empty(), "{:?}", log.0.lock().unwrap());
+    assert!(
+        log.0.lock().unwrap().is_empty(),
+        "{:?}",
+        log.0.lock().unwrap()
+    );
     i.set_real(&[fy], &[1e15]).unwrap();
     let e = i.do_step(2e-6, 0.02).unwrap_err();
     assert!(e.message().contains("blow-up"), "{}", e.message());
     let heard = log.0.lock().unwrap().clone();
     assert_eq!(heard.len(), 1, "{heard:?}");
     let (status, category, message) = &heard[0];
-    assert_eq!((*status, category.as_str()), (Status::Warning, "logStatusWarning"));
+    assert_eq!(
+        (*status, category.as_str()),
+        (Status::Warning, "logStatusWarning")
+    );
     assert!(
         message.contains("fmi2DoStep(t = 2e-6, h = 0.02): ")
             && message.contains(" solver steps of 280 particles")

@@ -2,16 +2,22 @@
 //! safe `Instance` API the C layer wraps: far from time zero a doStep simulates exactly its
 //! communication step (the simulated time is kept relative to startTime) or is refused when the
 //! step cannot be resolved; fmi2SetupExperiment refuses a stop time before the start time;
-//! fmi2SetRealInputDerivatives is accepted where FMI 2.0 allows it.
-use mps_solid::fmi::instance::{Instance, Mode, NoLogger, Status};
+//! fmi2SetRealInputDerivatives is accepted where FMI 2.0 allows it; a doStep of minutes warns
+//! the host before it starts (item 8).
+use mps_solid::fmi::instance::{Instance, Logger, Mode, NoLogger, Status};
 use mps_solid::fmi::model_description::guid;
 use mps_solid::Scene;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// An instantiated (not initialised) instance of tests/data/small2d.json.
 fn instance() -> Instance {
+    instance_with(Arc::new(NoLogger))
+}
+
+/// [`instance`] with the host's logger.
+fn instance_with(logger: Arc<dyn Logger>) -> Instance {
     static CALLS: AtomicUsize = AtomicUsize::new(0);
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let scene = Scene::load(&root.join("tests/data/small2d.json")).unwrap();
@@ -23,15 +29,7 @@ fn instance() -> Instance {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("scene.json"), scene.to_json()).unwrap();
     let uri = format!("file://{}", dir.display());
-    let i = Instance::instantiate(
-        "time",
-        true,
-        &guid(&scene),
-        Some(&uri),
-        Arc::new(NoLogger),
-        false,
-    )
-    .unwrap();
+    let i = Instance::instantiate("time", true, &guid(&scene), Some(&uri), logger, false).unwrap();
     std::fs::remove_dir_all(&dir).ok();
     i
 }
@@ -139,4 +137,65 @@ fn input_derivatives_are_accepted_before_initialisation() {
         .set_real_input_derivatives(&[g], &[1], &[1.0])
         .unwrap_err();
     assert!(e.message().contains("Terminated"), "{}", e.message());
+}
+
+/// What reached the host's logger, in order, as it was called.
+#[derive(Default)]
+struct Recorded(Mutex<Vec<(Status, String, String)>>);
+
+impl Logger for Recorded {
+    fn log(&self, status: Status, category: &str, message: &str) {
+        self.0
+            .lock()
+            .unwrap()
+            .push((status, category.to_string(), message.to_string()));
+    }
+}
+
+#[test]
+fn a_do_step_of_minutes_warns_the_host_before_it_starts() {
+    // Issue 27.8: an FMU accepted 1e7 sub-steps in one doStep (within solver.max_steps) and
+    // blocked for many minutes without a word. Now a doStep whose estimated wall time is above
+    // LONG_STEP_WARNING_S warns the host at once, with the step count and the estimate.
+    //
+    // Here solver.dt = 1e-8 s and h = 0.02 s: 2e6 sub-steps of 280 particles, a few minutes by
+    // the solver's cost figures (Simulation::estimate_wall_time). So that the test does not run
+    // them, a tip force of 1e15 N blows the model up in its first sub-step (8 particles of
+    // 0.16 kg kicked by far more than half a spacing): the warning must already be with the
+    // logger when the failed call returns, i.e. it was handed over during the call, not queued
+    // for after it.
+    let log = Arc::new(Recorded::default());
+    let mut i = instance_with(log.clone());
+    let vr = |i: &Instance, n: &str| i.table().by_name(n).unwrap().value_reference;
+    let (dt, fy) = (vr(&i, "solver.dt"), vr(&i, "tip_load.fy"));
+    i.set_real(&[dt], &[1e-8]).unwrap();
+    i.setup_experiment(0.0, None).unwrap();
+    i.enter_initialization_mode().unwrap();
+    i.exit_initialization_mode().unwrap();
+    // An ordinary step (200 sub-steps) says nothing.
+    i.do_step(0.0, 2e-6).unwrap();
+    assert!(
+        log.0.lock().unwrap().is_empty(),
+        "{:?}",
+        log.0.lock().unwrap()
+    );
+    i.set_real(&[fy], &[1e15]).unwrap();
+    let e = i.do_step(2e-6, 0.02).unwrap_err();
+    assert!(e.message().contains("blow-up"), "{}", e.message());
+    let heard = log.0.lock().unwrap().clone();
+    assert_eq!(heard.len(), 1, "{heard:?}");
+    let (status, category, message) = &heard[0];
+    assert_eq!(
+        (*status, category.as_str()),
+        (Status::Warning, "logStatusWarning")
+    );
+    assert!(
+        message.contains("fmi2DoStep(t = 2e-6, h = 0.02): ")
+            && message.contains(" solver steps of 280 particles")
+            && message.contains("of wall time on two cores before this call returns")
+            && message.contains("shorter communication steps"),
+        "{message}"
+    );
+    // The estimate it quotes: minutes (about 156 s at the cost figures of sim::STEP_COST).
+    assert!(message.contains(" min of wall time"), "{message}");
 }

@@ -215,8 +215,11 @@ fn mps_run_refuses_a_set_up_beyond_its_bound_with_the_estimate() {
     s.output_interval = 0.001;
     let (ok, err) = quick(12.0, || mps_run(&s, "bound"));
     assert!(!ok, "{err}");
+    // (On a loaded machine the particles and bonds may pass the second after which the stages
+    // are told: their lines may come first.)
+    let first_other = err.lines().find(|l| !l.starts_with("set-up: "));
     assert!(
-        err.starts_with("error: ")
+        first_other.is_some_and(|l| l.starts_with("error: "))
             && err.contains("solver.max_setup_seconds")
             && err.contains("the set-up would take about"),
         "{err}"

@@ -514,7 +514,8 @@ const PORTABLE_GLIBC: (u32, u32) = (2, 17);
 /// The default library of `mps pack`: the portable build of scripts/build-fmu-lib.sh in the
 /// target directory this program was built in (target/release/mps ->
 /// target/x86_64-unknown-linux-gnu/fmu/libmps_solid.so). Missing: an error that says how to
-/// build it (not the non-portable library with debug line tables beside this program).
+/// build it (not the non-portable library beside this program, linked against this machine's
+/// glibc).
 fn portable_library() -> Result<PathBuf, String> {
     let exe = std::env::current_exe().map_err(|e| {
         format!("cannot locate this program (to find the library; give --lib): {e}")
@@ -538,14 +539,15 @@ fn portable_library() -> Result<PathBuf, String> {
          stripped and linked against glibc {}.{} by cargo-zigbuild (the script installs it into \
          .venv, and prints the library's path; several minutes the first time), then pack again. \
          Or pass --lib PATH to pack another build of these sources (target/release/libmps_solid.so \
-         carries debug line tables, about 45 MB, and needs this machine's glibc)",
+         is not stripped and needs this machine's glibc, so its FMU loads only where that glibc \
+         or a newer one is)",
         env!("CARGO_MANIFEST_DIR"),
         PORTABLE_GLIBC.0,
         PORTABLE_GLIBC.1
     ))
 }
 
-/// "9.5 MB; library 2.4 MB, needs glibc >= 2.17" for the line of a packed FMU, with a warning on
+/// "1.2 MB; library PATH 2.9 MB, needs glibc >= 2.17" for the line of a packed FMU, with a warning on
 /// stderr when the library is not the portable kind (a newer glibc than 2.17).
 fn packed_summary(fmu: &std::path::Path, lib: &std::path::Path) -> String {
     let mb = |p: &std::path::Path| {

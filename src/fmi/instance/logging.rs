@@ -117,6 +117,14 @@ impl PendingLog {
         self.push(Status::Warning, "logStatusWarning", msg);
     }
 
+    /// Logs a warning at once, while the call runs (always, like [`PendingLog::warn`]): for
+    /// what the host must hear before the work, not after it (a doStep of many minutes). The
+    /// logger is called with the instance locked; a logger that calls back into the instance
+    /// is refused by the C layer (ffi::guard), not deadlocked.
+    pub(super) fn warn_now(&self, msg: &str) {
+        self.logger.log(Status::Warning, "logStatusWarning", msg);
+    }
+
     /// Logs an error of a call (always: errors are not debug messages).
     pub(super) fn report(&self, function: &str, e: &FmiError) {
         let category = match e.status() {

@@ -33,5 +33,7 @@ pub use logging::{LogRecord, Logger, NoLogger};
 pub use resources::{load_scene, resource_dir};
 pub(crate) use status::panic_message;
 pub use status::{FmiError, FmiResult, Status};
-pub use stepping::{DO_STEP_STATUS, LAST_SUCCESSFUL_TIME, PENDING_STATUS, TERMINATED};
+pub use stepping::{
+    DO_STEP_STATUS, LAST_SUCCESSFUL_TIME, LONG_STEP_WARNING_S, PENDING_STATUS, TERMINATED,
+};
 pub use worker_pool::{instance_threads, WorkerPool};

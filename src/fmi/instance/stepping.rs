@@ -3,6 +3,7 @@
 use super::inputs::{BoundaryTiming, GravitySource, Inputs};
 use super::lifecycle::{Instance, Mode};
 use super::status::{FmiError, FmiResult, Status};
+use crate::physics::duration_text;
 use crate::scene::limits::num;
 use crate::sim::Simulation;
 
@@ -15,6 +16,11 @@ pub const TERMINATED: i32 = 3;
 /// Largest relative difference between the step a doStep simulates and the step the host asked
 /// for (round-off of the simulated time): a step that cannot be resolved this well is refused.
 const STEP_RESOLUTION: f64 = 1e-6;
+
+/// Estimated wall time (s, on two cores) above which a doStep warns the host before it starts:
+/// the host hears how long the call will block (issue 27.8: a doStep of 1e7 sub-steps, within
+/// solver.max_steps, blocked for many minutes without a word).
+pub const LONG_STEP_WARNING_S: f64 = 60.0;
 
 /// Relative tolerance of time comparisons.
 fn time_tol(t: f64) -> f64 {
@@ -51,8 +57,9 @@ impl Instance {
     }
 
     /// fmi2DoStep: advances from t to exactly t + h with the solver's stable sub-steps. A step
-    /// that would take more than `solver.max_steps` solver steps is refused before any work,
-    /// leaving the instance as it was.
+    /// that would take more than `solver.max_steps` solver steps (or `solver.max_particle_steps`)
+    /// is refused before any work, leaving the instance as it was; one estimated at more than
+    /// [`LONG_STEP_WARNING_S`] of wall time is logged as a warning at once, before the work.
     pub fn do_step(&mut self, t: f64, h: f64) -> FmiResult<()> {
         self.require("fmi2DoStep", &[Mode::StepComplete])?;
         if !(h.is_finite() && h > 0.0) {
@@ -109,6 +116,21 @@ impl Instance {
                 num(h)
             ))
         })?;
+        let steps = sim.estimate_steps(sim_end);
+        let wall = sim.estimate_wall_time(steps);
+        if wall > LONG_STEP_WARNING_S {
+            self.log.warn_now(&format!(
+                "fmi2DoStep(t = {}, h = {}): {steps} solver steps of {} particles (dt = {:.4e} s), \
+                 about {} of wall time on two cores before this call returns; shorter \
+                 communication steps return sooner, and solver.max_steps or \
+                 solver.max_particle_steps in the scene bound one step's work",
+                num(t),
+                num(h),
+                sim.particles(),
+                h / steps as f64,
+                duration_text(wall)
+            ));
+        }
         Self::apply_inputs(sim, &self.inputs, sim_end - sim.time());
         let res = self.pool.install(|| sim.advance_to(sim_end));
         let res = match res {

@@ -115,10 +115,11 @@ pub struct SecondOrder<const D: usize> {
 /// Scratch of the force passes.
 #[derive(Clone, Debug, Default)]
 pub struct SecondOrderScratch<const D: usize> {
-    /// Displacement gradient H_i.
+    /// Displacement gradient H_i (for det F and the strain of the outputs). The Hessians
+    /// G_i^(a) are not kept (issue 25: D^3 values per particle, 216 B in 3D, used only by the
+    /// energy queries): [`SecondOrder::strain_energy`] fits them again from the same
+    /// displacements, which gives them bit for bit.
     pub grad: Vec<Mat<D>>,
-    /// Displacement Hessian G_i^(a), a = 0..D: (G^(a))_{k c} = d_a d_c u_k.
-    pub hess: Vec<[Mat<D>; D]>,
     /// dE/d(u_j - u_i) of each directed bond (N).
     pub dbond: Vec<Vect<D>>,
     /// Displacements with the ghosts of a mirror clamp reflected (empty without ghosts).
@@ -640,7 +641,6 @@ where
     ) {
         let n = p.len();
         s.grad.resize(n, Mat::<D>::zeros());
-        s.hess.resize(n, [Mat::<D>::zeros(); D]);
         let Cells {
             lame,
             laws,
@@ -676,17 +676,15 @@ where
         // H_i and G_i; the conjugates A = dE/dH_i and B = dE/dG_i from the cell energy and the
         // residuals of i's bonds; then dE/d du_b = A g_b + sum_a B^(a) h_b[a] + rho_b per bond.
         par_iter_mut!(s.grad)
-            .zip(par_iter_mut!(s.hess))
             .zip(par_iter_mut!(slices))
             .zip(par_iter_mut!(collapsed))
             .enumerate()
-            .for_each(|(i, (((gr, he), out), c_out))| {
+            .for_each(|(i, ((gr, out), c_out))| {
                 let ui = uu[i];
                 let quad = self.quadratic[i];
                 let range = bonds.of(i);
                 let (h, g) = self.fit(bonds, i, |k| uu[k]);
                 *gr = h;
-                *he = g;
                 *c_out = 0;
                 if self.rigid[i] {
                     out.iter_mut().for_each(|d| *d = Vect::<D>::zeros());
@@ -812,14 +810,17 @@ where
         } else {
             &s.ueff
         };
-        // Before the first force pass the scratch is empty: nothing is strained yet.
-        s.grad
-            .iter()
-            .zip(&s.hess)
+        // Before the first force pass the scratch is empty: nothing is strained yet. Each
+        // particle's gradient and Hessian are fitted again from the displacements of the last
+        // force pass (`ueff` or `p.u`, unchanged since): the same sums in the same order as
+        // there, so the same bits as the force pass saw, without keeping the Hessians.
+        (0..s.grad.len())
             .zip(c.retained)
-            .enumerate()
             .filter(|(i, _)| !self.rigid[*i])
-            .map(|(i, ((h, g), share))| share * self.cell_energy(p, bonds, c, i, h, g, |k| uu[k]))
+            .map(|(i, share)| {
+                let (h, g) = self.fit(bonds, i, |k| uu[k]);
+                share * self.cell_energy(p, bonds, c, i, &h, &g, |k| uu[k])
+            })
             .sum()
     }
 

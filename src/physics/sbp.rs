@@ -542,8 +542,9 @@ where
     // Back to the world's bonds of the real particles, by layer class.
     let key =
         |r: &Vect<D>| -> Vec<i64> { r.iter().map(|c| (c / l0 * 4.0).round() as i64).collect() };
+    // Written straight into `out.dg` (a list of the updates first would hold 32 B per bond of
+    // the body, issue 25), and cleared again if a correction has no bond.
     let mut lost = 0.0f64;
-    let mut updates = Vec::new();
     for (vi, &i) in real.iter().enumerate() {
         let world: HashMap<Vec<i64>, usize> = bonds
             .of(i)
@@ -556,21 +557,20 @@ where
         for bnd in vb.of(si) {
             match world.get(&key(&vb.r0[bnd])) {
                 // The world's plain weight becomes the refined fit's plus the correction.
-                Some(&wb) => updates.push((
-                    wb,
-                    frame * (vso.g[bnd] + corr[bnd]) - so.grad_weight(bonds, i, wb),
-                )),
+                Some(&wb) => {
+                    out.dg[wb] = frame * (vso.g[bnd] + corr[bnd]) - so.grad_weight(bonds, i, wb)
+                }
                 None => lost = lost.max(corr[bnd].amax()),
             }
         }
     }
     if lost > 0.0 {
+        for &i in &real {
+            out.dg[bonds.of(i)].fill(Vect::<D>::zeros());
+        }
         return Err(format!(
             "a correction of {lost:.2e} 1/m has no bond in the world"
         ));
-    }
-    for (wb, c) in updates {
-        out.dg[wb] = c;
     }
     for (vi, &i) in real.iter().enumerate() {
         let k = full_idx[vi];

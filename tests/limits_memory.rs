@@ -302,7 +302,11 @@ fn memory_by_setup_stage() {
     // figures over their particle counts is the cost per particle at large sizes, where the
     // closure's reduced box (at most 17^3 particles whatever the body's size) is amortised.
     let mut rows = Vec::new();
-    for (model, n) in [("second_order", 30), ("second_order", 40), ("corrected", 40)] {
+    for (model, n) in [
+        ("second_order", 30),
+        ("second_order", 40),
+        ("corrected", 40),
+    ] {
         let s = block_with(3, n, 2.1, model);
         let np = n * n * n;
         let m = measure_stages(&s, 3);

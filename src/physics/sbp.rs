@@ -433,7 +433,6 @@ where
     }
     let sys = NullSpaceConstraints::new(&vb, &row_gram, l0, D + 1, tie);
     let nb = vb.len();
-    let mut corr: Vec<Vect<D>> = vec![Vect::<D>::zeros(); nb];
     let mut figures = Vec::new();
     let mut targets = Vec::with_capacity(D);
     for d in 0..D {
@@ -511,8 +510,12 @@ where
     }
     // The axes' solves are independent: side by side (each is a few thousand iterations of
     // small parallel passes, which keep fewer than two cores busy).
+    // The Hessian weights of the virtual body served the targets only: freed before the
+    // solves, the peak of the closure (issue 25).
+    vso.h = Vec::new();
     let solve = |t: &Vec<f64>| sys.solve(t);
     let solved: Vec<_> = crate::physics::par::map(&targets, solve);
+    let mut corr: Vec<Vect<D>> = vec![Vect::<D>::zeros(); nb];
     for (d, (t, (c, iters, res))) in targets.iter().zip(solved).enumerate() {
         let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
         // (NaN fails it too.)

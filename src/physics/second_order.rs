@@ -102,9 +102,9 @@ pub struct SecondOrder<const D: usize> {
     /// Whether particle i is a follower.
     pub following: Vec<bool>,
     /// Summation-by-parts closure (module `sbp`): the correction of each bond's gradient
-    /// weight (1/m; empty without a closure, and in the packed form once taken into the
-    /// closed particles' sets).
-    pub closure_dg: Vec<Vect<D>>,
+    /// weight (1/m), D values per bond of a closed particle, interned by set (`sbp::Closure`;
+    /// empty without a closure, and in the packed form once taken into the particles' sets).
+    pub closure_dg: Stencils<D>,
     /// Whether particle i belongs to a closed body.
     pub closable: Vec<bool>,
     /// Whether particle i's weights carry the closure now (closable and none of its bonds
@@ -226,7 +226,7 @@ where
             } else {
                 walls.to_vec()
             },
-            closure_dg: Vec::new(),
+            closure_dg: Stencils::default(),
             closable: Vec::new(),
             closed: Vec::new(),
             n_ref: (0..n)
@@ -280,15 +280,9 @@ where
             .map(|k| &self.ghosts[k])
     }
 
-    /// Takes the summation-by-parts closure of module `sbp`: `dg` per bond, `closable` per
-    /// particle; refreshes the closable particles.
-    pub fn set_closure(
-        &mut self,
-        bonds: &Bonds<D>,
-        l0: f64,
-        dg: Vec<Vect<D>>,
-        closable: Vec<bool>,
-    ) {
+    /// Takes the summation-by-parts closure of module `sbp`: `dg` per closed particle's bond,
+    /// `closable` per particle; refreshes the closable particles.
+    pub fn set_closure(&mut self, bonds: &Bonds<D>, l0: f64, dg: Stencils<D>, closable: Vec<bool>) {
         self.closed = vec![false; closable.len()];
         self.closure_dg = dg;
         self.closable = closable;
@@ -301,7 +295,7 @@ where
             // The closed particles' sets hold their corrections; a particle whose bonds come
             // back takes its set as built (`initial_class`).
             self.initial_class = self.stencils.class.clone();
-            self.closure_dg = Vec::new();
+            self.closure_dg = Stencils::default();
         }
     }
 
@@ -417,11 +411,14 @@ where
             let intact = bonds.of(i).all(|b| bonds.w0[b] > 0.0);
             self.closed[i] = intact;
             if intact {
-                if self.closure_dg.is_empty() {
+                if self.closure_dg.class.is_empty() {
                     as_built = true;
                 } else {
-                    for b in bonds.of(i) {
-                        gw[b - first] += self.closure_dg[b];
+                    let row = self.closure_dg.get(i);
+                    for (k, gk) in gw.iter_mut().enumerate() {
+                        *gk += row.map_or(Vect::<D>::zeros(), |r| {
+                            Vect::<D>::from_fn(|a, _| r[k * D + a])
+                        });
                     }
                 }
             }

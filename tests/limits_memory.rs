@@ -322,33 +322,43 @@ fn memory_by_setup_stage() {
         assert!(m.stages.len() >= 5, "{model}: the stages were told");
         rows.push((model, np, m));
     }
+    // The cost per particle at large sizes, stage by stage: the difference of the two cubes'
+    // figures over the difference of their particle counts; and what is left at no particles
+    // (the fixed cost: the closure's reduced box).
     let (a, b) = (&rows[0], &rows[1]);
-    for (what, fa, fb) in [
-        ("peak", a.2.peak(), b.2.peak()),
-        ("built world", a.2.built, b.2.built),
-    ] {
+    let mut lines: Vec<(String, usize, usize)> =
+        a.2.stages
+            .iter()
+            .zip(&b.2.stages)
+            .map(|(x, y)| (format!("{} peak", x.0.name()), x.1, y.1))
+            .collect();
+    lines.push(("built world".into(), a.2.built, b.2.built));
+    lines.push(("steps peak".into(), a.2.steps_peak, b.2.steps_peak));
+    for (what, fa, fb) in lines {
+        let slope = (fb as f64 - fa as f64) / (b.1 - a.1) as f64;
         eprintln!(
-            "second_order slope of the {what}: {:.0} B/particle",
-            (fb as f64 - fa as f64) / (b.1 - a.1) as f64
+            "second_order {what}: {slope:.0} B/particle at large sizes, fixed {:.1} MB",
+            (fa as f64 - slope * a.1 as f64) / 1e6
         );
     }
 }
 
 #[test]
-#[ignore = "slow (about 150 s on a loaded 2-core machine): the full test command runs it"]
+#[ignore = "slow (about 120 s on a loaded 2-core machine): the full test command runs it"]
 fn second_order_needs_at_most_3_kb_per_particle_in_3d() {
     // Issue 25: at most 3 kB per particle in 3D for the default operator at re = 2.1 dp, the
     // peak over the whole build (closure included) and a few steps with the strain energy
     // query of the outputs. Size: the closure solves on a reduced box of at most 17^3
-    // particles whatever the body's size, a fixed cost (about 20 MB, BENCHMARKS.md "Issue 25:
-    // memory") that a 40^3 cube would still carry at 300 B per particle; at 50^3 (125,000
-    // particles) it is about 170 B per particle, and what is measured is the cost that grows
-    // with the particles, as in a large scene. Bound: the issue's, 3,000 B per particle.
-    let n = 50;
+    // particles whatever the body's size, a fixed cost of about 40 MB (BENCHMARKS.md "Issue
+    // 25: memory") on top of 1.7 kB per particle, which makes the closure the peak of a 30^3
+    // cube (3.2 kB per particle there). From 40^3 (64,000 particles) on, the peak is the
+    // first stable-step measurement, which grows with the particles (2.6 kB each at large
+    // sizes), as in a large scene. Bound: the issue's, 3,000 B per particle.
+    let n = 40;
     let s = block(3, n, 2.1);
     let np = n * n * n;
     let m = measure_stages(&s, 3);
-    report("second_order 50^3", np, &m);
+    report("second_order 40^3", np, &m);
     let per = m.peak() as f64 / np as f64;
     assert!(per <= 3000.0, "{per:.0} B per particle > 3000");
 }

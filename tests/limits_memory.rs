@@ -86,7 +86,7 @@ fn measured_peak(scene: &Scene) -> usize {
 }
 
 #[test]
-#[ignore = "slow (203 s on a loaded 2-core machine): the full test command runs it"]
+#[ignore = "slow (118-203 s on a loaded 2-core machine): the full test command runs it"]
 fn estimate_bounds_the_measured_peak() {
     let models = ["second_order", "corrected"];
     let calibrate = std::env::var("CALIBRATE").ok();
@@ -295,7 +295,7 @@ fn report(label: &str, np: usize, m: &Stages) {
 }
 
 #[test]
-#[ignore = "slow (about 100 s on a loaded 2-core machine): the full test command runs it"]
+#[ignore = "slow (220-410 s on a loaded 2-core machine): the full test command runs it"]
 fn memory_by_setup_stage() {
     // Two cubes of the default operator in 3D (closure included) and one of `corrected`: the
     // figures of BENCHMARKS.md ("Issue 25: memory"). The difference between the two cubes'
@@ -344,7 +344,7 @@ fn memory_by_setup_stage() {
 }
 
 #[test]
-#[ignore = "slow (about 120 s on a loaded 2-core machine): the full test command runs it"]
+#[ignore = "slow (134 s on a loaded 2-core machine): the full test command runs it"]
 fn second_order_needs_at_most_3_kb_per_particle_in_3d() {
     // Issue 25: at most 3 kB per particle in 3D for the default operator at re = 2.1 dp, the
     // peak over the whole build (closure included) and a few steps with the strain energy

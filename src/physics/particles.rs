@@ -46,11 +46,13 @@ impl<const D: usize> Particles<D>
 where
     Space: Dim<D>,
 {
+    /// Number of particles: the length of the state `u` (a probe state of the power iteration
+    /// holds only what the elastic operators read).
     pub fn len(&self) -> usize {
-        self.x.len()
+        self.u.len()
     }
     pub fn is_empty(&self) -> bool {
-        self.x.is_empty()
+        self.u.is_empty()
     }
     /// Displacement x - X of particle i (m).
     pub fn displacement(&self, i: usize) -> Vect<D> {

@@ -102,9 +102,9 @@ pub struct SecondOrder<const D: usize> {
     /// Whether particle i is a follower.
     pub following: Vec<bool>,
     /// Summation-by-parts closure (module `sbp`): the correction of each bond's gradient
-    /// weight (1/m; empty without a closure, and in the packed form once taken into the
-    /// closed particles' sets).
-    pub closure_dg: Vec<Vect<D>>,
+    /// weight (1/m), D values per bond of a closed particle, interned by set (`sbp::Closure`;
+    /// empty without a closure, and in the packed form once taken into the particles' sets).
+    pub closure_dg: Stencils<D>,
     /// Whether particle i belongs to a closed body.
     pub closable: Vec<bool>,
     /// Whether particle i's weights carry the closure now (closable and none of its bonds
@@ -115,10 +115,11 @@ pub struct SecondOrder<const D: usize> {
 /// Scratch of the force passes.
 #[derive(Clone, Debug, Default)]
 pub struct SecondOrderScratch<const D: usize> {
-    /// Displacement gradient H_i.
+    /// Displacement gradient H_i (for det F and the strain of the outputs). The Hessians
+    /// G_i^(a) are not kept (issue 25: D^3 values per particle, 216 B in 3D, used only by the
+    /// energy queries): [`SecondOrder::strain_energy`] fits them again from the same
+    /// displacements, which gives them bit for bit.
     pub grad: Vec<Mat<D>>,
-    /// Displacement Hessian G_i^(a), a = 0..D: (G^(a))_{k c} = d_a d_c u_k.
-    pub hess: Vec<[Mat<D>; D]>,
     /// dE/d(u_j - u_i) of each directed bond (N).
     pub dbond: Vec<Vect<D>>,
     /// Displacements with the ghosts of a mirror clamp reflected (empty without ghosts).
@@ -225,7 +226,7 @@ where
             } else {
                 walls.to_vec()
             },
-            closure_dg: Vec::new(),
+            closure_dg: Stencils::default(),
             closable: Vec::new(),
             closed: Vec::new(),
             n_ref: (0..n)
@@ -279,15 +280,9 @@ where
             .map(|k| &self.ghosts[k])
     }
 
-    /// Takes the summation-by-parts closure of module `sbp`: `dg` per bond, `closable` per
-    /// particle; refreshes the closable particles.
-    pub fn set_closure(
-        &mut self,
-        bonds: &Bonds<D>,
-        l0: f64,
-        dg: Vec<Vect<D>>,
-        closable: Vec<bool>,
-    ) {
+    /// Takes the summation-by-parts closure of module `sbp`: `dg` per closed particle's bond,
+    /// `closable` per particle; refreshes the closable particles.
+    pub fn set_closure(&mut self, bonds: &Bonds<D>, l0: f64, dg: Stencils<D>, closable: Vec<bool>) {
         self.closed = vec![false; closable.len()];
         self.closure_dg = dg;
         self.closable = closable;
@@ -300,7 +295,7 @@ where
             // The closed particles' sets hold their corrections; a particle whose bonds come
             // back takes its set as built (`initial_class`).
             self.initial_class = self.stencils.class.clone();
-            self.closure_dg = Vec::new();
+            self.closure_dg = Stencils::default();
         }
     }
 
@@ -416,11 +411,14 @@ where
             let intact = bonds.of(i).all(|b| bonds.w0[b] > 0.0);
             self.closed[i] = intact;
             if intact {
-                if self.closure_dg.is_empty() {
+                if self.closure_dg.class.is_empty() {
                     as_built = true;
                 } else {
-                    for b in bonds.of(i) {
-                        gw[b - first] += self.closure_dg[b];
+                    let row = self.closure_dg.get(i);
+                    for (k, gk) in gw.iter_mut().enumerate() {
+                        *gk += row.map_or(Vect::<D>::zeros(), |r| {
+                            Vect::<D>::from_fn(|a, _| r[k * D + a])
+                        });
                     }
                 }
             }
@@ -640,7 +638,6 @@ where
     ) {
         let n = p.len();
         s.grad.resize(n, Mat::<D>::zeros());
-        s.hess.resize(n, [Mat::<D>::zeros(); D]);
         let Cells {
             lame,
             laws,
@@ -676,17 +673,15 @@ where
         // H_i and G_i; the conjugates A = dE/dH_i and B = dE/dG_i from the cell energy and the
         // residuals of i's bonds; then dE/d du_b = A g_b + sum_a B^(a) h_b[a] + rho_b per bond.
         par_iter_mut!(s.grad)
-            .zip(par_iter_mut!(s.hess))
             .zip(par_iter_mut!(slices))
             .zip(par_iter_mut!(collapsed))
             .enumerate()
-            .for_each(|(i, (((gr, he), out), c_out))| {
+            .for_each(|(i, ((gr, out), c_out))| {
                 let ui = uu[i];
                 let quad = self.quadratic[i];
                 let range = bonds.of(i);
                 let (h, g) = self.fit(bonds, i, |k| uu[k]);
                 *gr = h;
-                *he = g;
                 *c_out = 0;
                 if self.rigid[i] {
                     out.iter_mut().for_each(|d| *d = Vect::<D>::zeros());
@@ -812,14 +807,17 @@ where
         } else {
             &s.ueff
         };
-        // Before the first force pass the scratch is empty: nothing is strained yet.
-        s.grad
-            .iter()
-            .zip(&s.hess)
+        // Before the first force pass the scratch is empty: nothing is strained yet. Each
+        // particle's gradient and Hessian are fitted again from the displacements of the last
+        // force pass (`ueff` or `p.u`, unchanged since): the same sums in the same order as
+        // there, so the same bits as the force pass saw, without keeping the Hessians.
+        (0..s.grad.len())
             .zip(c.retained)
-            .enumerate()
             .filter(|(i, _)| !self.rigid[*i])
-            .map(|(i, ((h, g), share))| share * self.cell_energy(p, bonds, c, i, h, g, |k| uu[k]))
+            .map(|(i, share)| {
+                let (h, g) = self.fit(bonds, i, |k| uu[k]);
+                share * self.cell_energy(p, bonds, c, i, &h, &g, |k| uu[k])
+            })
             .sum()
     }
 

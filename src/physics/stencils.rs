@@ -106,6 +106,14 @@ where
         self.values(self.class[i])
     }
 
+    /// The values of particle i's set, None if it has none (or there are no sets).
+    pub fn get(&self, i: usize) -> Option<&[f64]> {
+        match self.class.get(i) {
+            Some(&c) if c != u32::MAX => Some(self.values(c)),
+            _ => None,
+        }
+    }
+
     /// Gradient weight of bond k (in particle i's order) (1/m).
     #[inline(always)]
     pub fn g(w: &[f64], k: usize) -> Vect<D> {

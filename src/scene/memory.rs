@@ -15,21 +15,29 @@ use crate::physics::ElasticModel;
 const BASE_BYTES: [u64; 2] = [512, 960];
 const BOND_BYTES: [u64; 2] = [32, 40];
 /// The same for `second_order`, which stores per bond its mirror index and per particle its
-/// fits and the index of its interned weight set (src/physics/stencils.rs: a lattice body has a
-/// few hundred distinct sets, so the weights no longer cost 96 B per bond in 3D): measured
-/// (tests/limits_memory.rs, `CALIBRATE=3:30:2.1,...`) 1337 B per particle in 2D at re = 2.1 dp
-/// (400^2 particles) and 3783 B in 3D (the slope between 30^3 and 40^3 blocks), 645 / 2838 B in
-/// 2D at re = 1.5 / 3 dp; fitted as an upper bound and raised by 2 %. Before the interning:
-/// 7000-7550 B per particle in 3D at re = 2.1 dp.
-const SECOND_ORDER_BASE_BYTES: [u64; 2] = [220, 1300];
-const SECOND_ORDER_BOND_BYTES: [u64; 2] = [90, 80];
+/// fits' flags, span and the index of its interned weight set (src/physics/stencils.rs), and
+/// keeps per bond the conjugates of its force pass. Its peak is the first stable-step
+/// measurement (the power iteration's force pass beside the world) for a body larger than the
+/// closure's reduced box, the closure below otherwise. Measured after issue 25
+/// (tests/limits_memory.rs: `memory_by_setup_stage` per stage, `CALIBRATE=...` for the
+/// totals): 3D at re = 2.1 dp, stable step 2,642 B per particle at large sizes (30^3 and 40^3
+/// cubes) plus 6.6 MB, peaks of 2,796 and 2,746 B per particle at 35^3 and 40^3; 2D peaks of
+/// 757, 949-953 and 1,656 B per particle at re = 1.5, 2.1 and 3 dp (8, 12 and 28 bonds),
+/// i.e. 49 B per bond. Fitted as an upper bound with about 5 % to spare. Before issue 25's
+/// memory work: 3,783 B per particle in 3D at large sizes, 7,000-7,550 before the interning.
+const SECOND_ORDER_BASE_BYTES: [u64; 2] = [400, 800];
+const SECOND_ORDER_BOND_BYTES: [u64; 2] = [49, 66];
 /// The summation-by-parts closure of a second_order body (src/physics/sbp.rs) builds the operator
 /// once more on a reduced box of at most 17 layers a side during the build, with its
-/// conjugate-gradient systems: the estimate counts min(particles of the body, 17^D) particles
-/// `CLOSURE_WEIGHT` times more (measured: 31 kB per reduced-box particle in 2D, 11 kB in 3D at
-/// re = 2.1 dp, from the peaks of blocks of different sizes).
+/// conjugate-gradient systems: `CLOSURE_BOX_BYTES` per particle of the reduced box (min of the
+/// body's particles and 17^D), on top of `CLOSURE_SHARE` of the per-particle cost of the whole
+/// world for what the body holds by then (bonds, fits). Measured in 3D at re = 2.1 dp: 1,700 B
+/// per particle plus 39.6 MB (8.06 kB per box particle) from the 25^3 and 30^3 cubes, whose
+/// peak is the closure. 2D: the figure measured before issue 25 (31 kB per box particle),
+/// an upper bound not measured again (the 2D box has at most 289 particles).
 const CLOSURE_LAYERS: f64 = 17.0;
-const CLOSURE_WEIGHT: [f64; 2] = [26.0, 3.0];
+const CLOSURE_BOX_BYTES: [f64; 2] = [31_000.0, 8_500.0];
+const CLOSURE_SHARE: f64 = 0.62;
 /// Fixed cost of a world whatever its size (bytes).
 const FIXED_BYTES: u64 = 1 << 20;
 
@@ -64,7 +72,8 @@ pub fn estimate(scene: &Scene) -> MemoryEstimate {
     let d = if scene.dimension == 3 { 1 } else { 0 };
     let particles = scene.particle_bound();
     let nb = lattice_neighbours(scene.dimension, scene.solver.re_factor);
-    let (per, counted) = if scene.solver.model == ElasticModel::SecondOrder {
+    let (per, world) = if scene.solver.model == ElasticModel::SecondOrder {
+        let per = SECOND_ORDER_BASE_BYTES[d] + nb * SECOND_ORDER_BOND_BYTES[d];
         let closure: f64 = scene
             .bodies
             .iter()
@@ -74,14 +83,15 @@ pub fn estimate(scene: &Scene) -> MemoryEstimate {
                     .min(CLOSURE_LAYERS.powi(scene.dimension as i32))
             })
             .sum();
-        (
-            SECOND_ORDER_BASE_BYTES[d] + nb * SECOND_ORDER_BOND_BYTES[d],
-            particles + CLOSURE_WEIGHT[d] * closure,
-        )
+        // The larger of the two peaks: the stable step's and the closure's.
+        let stable = particles * per as f64;
+        let closing = particles * per as f64 * CLOSURE_SHARE + closure * CLOSURE_BOX_BYTES[d];
+        (per, stable.max(closing))
     } else {
-        (BASE_BYTES[d] + nb * BOND_BYTES[d], particles)
+        let per = BASE_BYTES[d] + nb * BOND_BYTES[d];
+        (per, particles * per as f64)
     };
-    let bytes = (counted * per as f64 + FIXED_BYTES as f64).min(u64::MAX as f64) as u64;
+    let bytes = (world + FIXED_BYTES as f64).min(u64::MAX as f64) as u64;
     MemoryEstimate {
         particles: particles.min(u64::MAX as f64) as u64,
         bonds_per_particle: nb,

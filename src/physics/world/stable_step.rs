@@ -95,7 +95,22 @@ where
         warm: Option<(&[Vect<D>], &[<Space as Dim<D>>::Ang])>,
     ) -> (f64, Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) {
         let n = self.len();
-        let mut probe = self.p.clone();
+        // The probe state holds what the elastic operators read (displacements, orientations,
+        // bodies, number densities), not the integrator's arrays (issue 25: about 110 B per
+        // particle less at the peak of the set-up).
+        let mut probe = Particles::<D> {
+            x0: Vec::new(),
+            u: self.p.u.clone(),
+            x: Vec::new(),
+            v: Vec::new(),
+            q: self.p.q.clone(),
+            w: Vec::new(),
+            body: self.p.body.clone(),
+            mass: Vec::new(),
+            inertia: Vec::new(),
+            fix: Vec::new(),
+            n_ref: self.p.n_ref.clone(),
+        };
         let mut scratch = ElasticScratch::default();
         let mut f = vec![Vect::<D>::zeros(); n];
         let mut t = vec![<Space as Dim<D>>::ang_zero(); n];
@@ -242,28 +257,26 @@ where
                         <Space as Dim<D>>::ang_add(t[i], <Space as Dim<D>>::ang_scale(t0[i], -1.0));
                 }
             }
-            let mut next_t: Vec<Vect<D>> = (0..n)
-                .map(|i| f[i] * (-1.0 / (eps * self.p.mass[i])))
-                .collect();
-            let mut next_r: Vec<<Space as Dim<D>>::Ang> = (0..n)
-                .map(|i| {
-                    if rotational {
-                        <Space as Dim<D>>::ang_scale(t[i], -1.0 / (eps * self.p.inertia[i]))
-                    } else {
-                        <Space as Dim<D>>::ang_zero()
-                    }
-                })
-                .collect();
-            mask(&self.p, &mut next_t, &mut next_r);
+            // The next iterate A z = -M^-1 (f(z eps) - f0) / eps, in place of the forces
+            // (which the next pass overwrites), then swapped with z.
+            for i in 0..n {
+                f[i] *= -1.0 / (eps * self.p.mass[i]);
+                t[i] = if rotational {
+                    <Space as Dim<D>>::ang_scale(t[i], -1.0 / (eps * self.p.inertia[i]))
+                } else {
+                    <Space as Dim<D>>::ang_zero()
+                };
+            }
+            mask(&self.p, &mut f, &mut t);
             // Rayleigh quotient <z, A z>_M with |z|_M = 1.
             lambda = (0..n)
                 .map(|i| {
-                    self.p.mass[i] * zt[i].dot(&next_t[i])
-                        + self.p.inertia[i] * <Space as Dim<D>>::ang_dot(zr[i], next_r[i])
+                    self.p.mass[i] * zt[i].dot(&f[i])
+                        + self.p.inertia[i] * <Space as Dim<D>>::ang_dot(zr[i], t[i])
                 })
                 .sum::<f64>();
-            zt = next_t;
-            zr = next_r;
+            std::mem::swap(&mut zt, &mut f);
+            std::mem::swap(&mut zr, &mut t);
         }
         (lambda.max(0.0).sqrt(), zt, zr)
     }

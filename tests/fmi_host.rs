@@ -1885,6 +1885,66 @@ struct SendComp(Comp);
 unsafe impl Send for SendComp {}
 
 #[test]
+fn fmi2_cancel_step_stops_a_long_closure_at_once() {
+    // Issue 27.7: fmi2CancelStep was seen only between set-up stages, so a bulky clamped
+    // body's closure (8 s for this cube, minutes for larger ones on a loaded machine) ran to its
+    // end before fmi2EnterInitializationMode returned. Its iterations now poll the request.
+    let _g = shared();
+    let scene = Scene::load(&root().join("tests/data/clamped_cube.json")).unwrap();
+    let u = Unpacked::from_scene(scene, "cancel_closure");
+    let i = Inst::new(&u);
+    let ev = cstr("logEvents");
+    unsafe {
+        assert_eq!(
+            (api().fmi2SetDebugLogging)(i.c, 1, 1, [ev.as_ptr()].as_ptr()),
+            OK
+        );
+        assert_eq!((api().fmi2SetupExperiment)(i.c, 0, 0.0, 0.0, 0, 0.0), OK);
+    }
+    let c = SendComp(i.c);
+    let started = std::time::Instant::now();
+    let setup = std::thread::spawn(move || {
+        let c = c;
+        let s = unsafe { (api().fmi2EnterInitializationMode)(c.0) };
+        (s, std::time::Instant::now())
+    });
+    loop {
+        if i.log.all().contains("set-up: operator fits took") {
+            break;
+        }
+        assert!(
+            started.elapsed().as_secs() < 120 && !setup.is_finished(),
+            "the set-up ended before its closure:\n{}",
+            i.log.all()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    // Inside the closure.
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let t = std::time::Instant::now();
+    assert_eq!(
+        unsafe { (api().fmi2CancelStep)(i.c) },
+        OK,
+        "{}",
+        i.log.all()
+    );
+    let (status, ended) = setup.join().unwrap();
+    i.expect_err(status, "during the closure stage");
+    let after = (ended - t).as_secs_f64();
+    // An iteration is about 1 ms on an idle machine; a second allows for a loaded one.
+    assert!(
+        after < 1.0,
+        "stopped {after:.2} s after the cancel:\n{}",
+        i.log.all()
+    );
+    assert!(
+        !i.log.all().contains("set-up: closure took"),
+        "{}",
+        i.log.all()
+    );
+}
+
+#[test]
 fn a_long_set_up_is_logged_as_it_happens_and_can_be_cancelled() {
     // Issue 27.7: fmi2EnterInitializationMode of a big scene logged nothing until it returned,
     // and fmi2CancelStep from another thread blocked until then. Now each stage is logged as it

@@ -735,7 +735,8 @@ pub unsafe extern "C" fn fmi2DoStep(
 /// never returns (doStep is synchronous), and does not require an instance to accept calls from
 /// two threads at once. The closest useful thing: called from another thread while a set-up
 /// runs (fmi2EnterInitializationMode, or fmi2ExitInitializationMode after parameter changes),
-/// it asks the set-up to stop at its next stage boundary and returns fmi2OK at once, without
+/// it asks the set-up to stop (at its next stage boundary, or within an iteration of the
+/// closure's solves, the longest stage) and returns fmi2OK at once, without
 /// waiting for the instance; the set-up's call then returns fmi2Error ("stopped ...") and the
 /// instance stays in the state it was in. A doStep cannot be stopped (its work is bounded by
 /// solver.max_steps): fmi2Error, at once as well. With no call running: fmi2Error.

@@ -141,7 +141,8 @@ pub struct SolverOptions {
     pub max_particle_steps: u64,
     /// Most wall-clock time the set-up of the model may take (s; work guard of the set-up:
     /// bonds, operator fits, closure, stable step). Estimated after the bonds are found and
-    /// refused then when the estimate is above it; checked again after every stage.
+    /// refused then when the estimate is above it; checked again after every stage and in every
+    /// iteration of the closure's solves, which stop when it is reached.
     pub max_setup_seconds: f64,
     /// Critical bond strain eps_max of Eq. (42) (-): a bond whose strain
     /// (|r_ij| - |r0_ij|) / |r0_ij| exceeds it breaks for good. None: no fracture (and no checks).

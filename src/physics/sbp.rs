@@ -86,6 +86,9 @@ pub struct Closure<const D: usize> {
     pub dg: Stencils<D>,
     /// Per body: closed (with the solve's figures) or why not.
     pub report: Vec<Result<String, String>>,
+    /// Set when the caller's stop check ended a solve: how far it had come (the bodies after
+    /// it were not tried, and the volumes and corrections are incomplete).
+    pub interrupted: Option<String>,
 }
 
 /// Orthonormal lattice axes (as columns) from particle i's bonds of length l0: the first bond
@@ -127,7 +130,9 @@ fn monomials<const D: usize>(s: &Vect<D>, out: &mut Vec<f64>) {
 
 /// Closes the second-order operator of every body that is a filled lattice box once mirrored
 /// across its mirror faces. `so` is the world's operator (its rigid flags and ghosts),
-/// `bonds` the world's bonds.
+/// `bonds` the world's bonds. `stop` is polled in the solves (from any thread): when it says
+/// so, the closure ends at once with `interrupted` set.
+#[allow(clippy::too_many_arguments)]
 pub fn close<const D: usize>(
     x0: &[Vect<D>],
     body: &[u32],
@@ -136,6 +141,7 @@ pub fn close<const D: usize>(
     l0: f64,
     re_factor: f64,
     n_bodies: usize,
+    stop: &(dyn Fn() -> bool + Sync),
 ) -> Closure<D>
 where
     Space: Dim<D>,
@@ -145,13 +151,17 @@ where
         vol: vec![None; n],
         dg: Stencils::with_particles(n),
         report: Vec::new(),
+        interrupted: None,
     };
     let ghost_of: HashMap<u32, &Ghost<D>> = so.ghosts.iter().map(|g| (g.ghost, g)).collect();
     for b in 0..n_bodies {
         let r = close_body(
-            x0, body, bonds, so, &ghost_of, l0, re_factor, b as u32, &mut out,
+            x0, body, bonds, so, &ghost_of, l0, re_factor, b as u32, stop, &mut out,
         );
         out.report.push(r);
+        if out.interrupted.is_some() {
+            break;
+        }
     }
     out
 }
@@ -166,6 +176,7 @@ fn close_body<const D: usize>(
     l0: f64,
     re_factor: f64,
     b: u32,
+    stop: &(dyn Fn() -> bool + Sync),
     out: &mut Closure<D>,
 ) -> Result<String, String>
 where
@@ -517,8 +528,27 @@ where
     // The Hessian weights of the virtual body served the targets only: freed before the
     // solves, the peak of the closure (issue 25).
     vso.h = Vec::new();
-    let solve = |t: &Vec<f64>| sys.solve(t);
+    let solve = |t: &Vec<f64>| sys.solve(t, stop);
     let solved: Vec<_> = crate::physics::par::map(&targets, solve);
+    if solved.iter().any(|s| s.is_err()) {
+        // The slowest axis says how long the closure still needs (they run side by side).
+        let (d, u) = solved
+            .iter()
+            .enumerate()
+            .filter_map(|(d, s)| s.as_ref().err().map(|u| (d, u)))
+            .max_by(|a, b| a.1.more_seconds.total_cmp(&b.1.more_seconds))
+            .expect("an interrupted axis");
+        let why = format!(
+            "the closure of body {b} was solving its constraints on a box of {small:?} \
+             particles: axis {d} at conjugate-gradient iteration {} of at most {MAX_ITERATIONS}, \
+             its residual {:.1e} times the one it stops at; at its pace it needed about {:.0} s \
+             more",
+            u.iterations, u.above_goal, u.more_seconds
+        );
+        out.interrupted = Some(why.clone());
+        return Err(why);
+    }
+    let solved: Vec<_> = solved.into_iter().flatten().collect();
     let mut corr: Vec<Vect<D>> = vec![Vect::<D>::zeros(); nb];
     for (d, (t, (c, iters, res))) in targets.iter().zip(solved).enumerate() {
         let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
@@ -782,8 +812,14 @@ where
         });
     }
 
-    /// Least-norm corrections for target t; returns (c, iterations, |A c - t|).
-    fn solve(&self, t: &[f64]) -> (Vec<f64>, usize, f64) {
+    /// Least-norm corrections for target t; returns (c, iterations, |A c - t|), or Err(how far
+    /// it had come) when `stop` says so (polled every iteration).
+    fn solve(
+        &self,
+        t: &[f64],
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<(Vec<f64>, usize, f64), Unfinished> {
+        let started = std::time::Instant::now();
         let n = t.len();
         let nb = self.bonds.len();
         let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
@@ -809,6 +845,9 @@ where
         let mut p = z.clone();
         let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
         let mut best = (f64::INFINITY, yv.clone());
+        // The smallest residual so far after each iteration: its trend tells an interrupted
+        // solve how far it has to go.
+        let mut lowest = Vec::new();
         while iters < MAX_ITERATIONS {
             let rnorm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
             if rnorm < 0.7 * best.0 {
@@ -816,6 +855,14 @@ where
             }
             if rnorm <= TOLERANCE * tnorm || rnorm > 1e3 * best.0 {
                 break;
+            }
+            lowest.push(rnorm.min(lowest.last().copied().unwrap_or(f64::INFINITY)));
+            if stop() {
+                return Err(Unfinished::new(
+                    &lowest,
+                    TOLERANCE * tnorm,
+                    started.elapsed().as_secs_f64(),
+                ));
             }
             self.at_project(&p, &mut c);
             self.apply(&c, &mut ap);
@@ -846,7 +893,42 @@ where
             .map(|(a, b)| (a - b) * (a - b))
             .sum::<f64>()
             .sqrt();
-        (c, iters, res)
+        Ok((c, iters, res))
+    }
+}
+
+/// How far an interrupted conjugate-gradient solve had come.
+struct Unfinished {
+    iterations: usize,
+    /// Its residual relative to the one it stops at.
+    above_goal: f64,
+    /// Seconds it would still need at its pace: its recent convergence rate (the smallest
+    /// residual over the second half of its iterations) carried to the goal, at most to
+    /// MAX_ITERATIONS.
+    more_seconds: f64,
+}
+
+impl Unfinished {
+    /// `lowest`: the smallest residual after each iteration; `goal`: the residual it stops at.
+    fn new(lowest: &[f64], goal: f64, seconds: f64) -> Self {
+        let n = lowest.len();
+        let now = lowest[n - 1];
+        let half = lowest[n / 2];
+        let per_iteration = seconds / n as f64;
+        let rate = (now.ln() - half.ln()) / (n - n / 2) as f64;
+        let left = (MAX_ITERATIONS - n) as f64;
+        let more = if rate < 0.0 && now > goal {
+            ((goal.ln() - now.ln()) / rate).min(left)
+        } else if now <= goal {
+            0.0
+        } else {
+            left
+        };
+        Unfinished {
+            iterations: n,
+            above_goal: now / goal,
+            more_seconds: more * per_iteration,
+        }
     }
 }
 

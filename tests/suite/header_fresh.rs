@@ -1,5 +1,5 @@
 //! include/mps_fmi.h is what cbindgen makes of src/fmi/ffi.rs today (regenerate it with
-//! `MPS_BLESS=1 cargo test --test header_fresh`).
+//! `MPS_BLESS=1 cargo test --release --test suite header_fresh::`).
 use std::path::PathBuf;
 
 #[test]
@@ -33,6 +33,6 @@ fn header_is_fresh() {
     }
     assert!(
         committed == fresh,
-        "include/mps_fmi.h is stale: regenerate it with `MPS_BLESS=1 cargo test --test header_fresh`"
+        "include/mps_fmi.h is stale: regenerate it with `MPS_BLESS=1 cargo test --release --test suite header_fresh::`"
     );
 }

@@ -186,6 +186,103 @@ fn a_set_up_longer_than_its_bound_is_refused_early_with_its_estimate() {
     assert!(e.contains("solver.max_setup_seconds"), "{e}");
 }
 
+/// A 15-across cube clamped by a region over wall layers (tests/data/clamped_cube.json): its
+/// closure is most of its set-up (about 8 s of conjugate gradients on an idle 2-core machine).
+fn clamped_cube() -> Scene {
+    Scene::load(
+        &std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/clamped_cube.json"),
+    )
+    .unwrap()
+}
+
+/// Stops the set-up through its flag once set from another thread (as fmi2CancelStep does).
+#[derive(Default)]
+struct FlagStop {
+    fits_done: std::sync::atomic::AtomicBool,
+    flag: std::sync::atomic::AtomicBool,
+}
+
+impl mps_solid::physics::world::SetupObserver for FlagStop {
+    fn stage_done(&self, stage: mps_solid::physics::world::SetupStage, _: f64, _: &str) {
+        if stage.name() == "operator fits" {
+            self.fits_done
+                .store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
+    fn stop(&self) -> Option<String> {
+        self.flag
+            .load(std::sync::atomic::Ordering::SeqCst)
+            .then(|| "the test asked".to_string())
+    }
+    fn stop_flag(&self) -> Option<&std::sync::atomic::AtomicBool> {
+        Some(&self.flag)
+    }
+}
+
+#[test]
+fn a_stop_request_ends_the_closure_within_an_iteration() {
+    // Issue 27.7: a stop request (fmi2CancelStep) was seen only at stage boundaries, so the
+    // closure of a bulky clamped body (8 s here, 30-200 s for larger cubes on a loaded machine)
+    // ran to its end first. Its conjugate gradients now poll the request every iteration (a
+    // few ms each): the set-up ends within a second of it, saying how far the closure came.
+    let s = clamped_cube();
+    let obs = FlagStop::default();
+    let (result, asked) = std::thread::scope(|sc| {
+        let asker = sc.spawn(|| {
+            while !obs.fits_done.load(std::sync::atomic::Ordering::SeqCst) {
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            // Well inside the closure (its first iterations take some ms).
+            std::thread::sleep(Duration::from_millis(300));
+            obs.flag.store(true, std::sync::atomic::Ordering::SeqCst);
+            Instant::now()
+        });
+        let r = Simulation::new_observed(&s, &obs).map(|_| ());
+        (r, asker.join().unwrap())
+    });
+    let after = asked.elapsed().as_secs_f64();
+    let e = result.expect_err("the set-up was stopped").to_string();
+    assert!(
+        e.contains("stopped during the closure stage")
+            && e.contains("conjugate-gradient iteration")
+            && e.contains("the test asked"),
+        "{e}"
+    );
+    // One iteration on the 15^3 box is about 1 ms idle; a second allows for a loaded machine.
+    assert!(
+        after < 1.0,
+        "the set-up ended {after:.2} s after the request: {e}"
+    );
+}
+
+#[test]
+fn the_bound_ends_the_closure_when_it_is_reached() {
+    // Issue 27.7: solver.max_setup_seconds was checked only at stage boundaries; the estimate
+    // made after the bonds puts the closure at 60 bonds-stage times, far below what a bulky
+    // clamped body's closure takes (8 s here against an estimate near 1.5 s), so a bound in
+    // between let it run to its end. The closure's iterations now check the bound: the set-up
+    // ends at it (or is refused earlier by the estimate, on a machine slow enough for the
+    // bonds stage to give a larger one), never past it by more than an iteration.
+    let mut s = clamped_cube();
+    let bound = 4.0;
+    s.solver.max_setup_seconds = bound;
+    let t = Instant::now();
+    let e = Simulation::new(&s).err().expect("refused").to_string();
+    let took = t.elapsed().as_secs_f64();
+    assert!(e.contains("solver.max_setup_seconds = 4 s"), "{e}");
+    if !e.contains("the set-up would take about") {
+        assert!(
+            e.contains("during its closure stage")
+                && e.contains("conjugate-gradient iteration")
+                && e.contains("s more"),
+            "{e}"
+        );
+    }
+    // The set-up's own clock starts after the scene's validation and fill (some ms); 0.5 s
+    // allows for an iteration and a loaded machine.
+    assert!(took < bound + 0.5, "refused after {took:.2} s: {e}");
+}
+
 /// Runs `mps run SCENE --out DIR` on `scene` (written to a scratch file); its exit status
 /// success and stderr.
 fn mps_run(scene: &Scene, name: &str) -> (bool, String) {

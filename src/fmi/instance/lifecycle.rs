@@ -90,6 +90,9 @@ impl SetupObserver for SetupLog<'_> {
             .load(Ordering::SeqCst)
             .then(|| "fmi2CancelStep was called".to_string())
     }
+    fn stop_flag(&self) -> Option<&AtomicBool> {
+        Some(&self.control.cancel)
+    }
 }
 
 /// One FMU instance.

@@ -71,7 +71,7 @@ where
     /// [`World::new`] with each stage timed and told to `observer` as it ends; at each stage
     /// boundary the observer may stop the set-up, and so may the bound
     /// `solver.max_setup_seconds` (checked from the bonds stage on with an estimate of the
-    /// whole set-up, then with the time taken).
+    /// whole set-up, then with the time taken, and within the closure's solves).
     pub fn new_observed(
         l0: f64,
         options: SolverOptions,
@@ -392,6 +392,9 @@ where
         // whose transpose passes the integration constraint.
         let mut closure = Vec::new();
         if options.model == ElasticModel::SecondOrder {
+            // The closure's solves are the longest loop of a set-up (tens of seconds for a
+            // bulky body): they stop within an iteration at the bound or a stop request.
+            let interrupt = clock.interrupt();
             let cl = sbp::close(
                 &p.x0,
                 &p.body,
@@ -400,7 +403,11 @@ where
                 l0,
                 options.re_factor,
                 bodies.len(),
+                &|| interrupt.hit(),
             );
+            if let Some(progress) = &cl.interrupted {
+                return Err(clock.interrupted(SetupStage::Closure, progress));
+            }
             let closable: Vec<bool> = cl.vol.iter().map(|v| v.is_some()).collect();
             for (i, v) in cl.vol.iter().enumerate() {
                 if let Some(v) = v {

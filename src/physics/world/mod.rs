@@ -16,7 +16,7 @@ mod step;
 
 pub use build::MIN_SPACING_BITS;
 pub use mirror::MirrorFace;
-pub use setup::{SetupObserver, SetupStage, Unobserved};
+pub use setup::{SetupInterrupt, SetupObserver, SetupStage, Unobserved};
 pub use stable_step::{
     StableStepState, OMEGA_MARGIN, REFRESH_CHECK_EVERY, REFRESH_DEFORMATION, REFRESH_ITERATIONS,
     REFRESH_MIN_STEPS,

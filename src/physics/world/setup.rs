@@ -4,7 +4,8 @@
 //! messages go (the FMI logger, stderr) or why an observer stops a set-up (a host's
 //! fmi2CancelStep).
 use super::SimError;
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 /// The stages of a set-up, in order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,6 +51,32 @@ pub trait SetupObserver {
     /// Some(why) stops the set-up at the next stage boundary (`SimError::Stopped`).
     fn stop(&self) -> Option<String> {
         None
+    }
+    /// A flag another thread sets to stop the set-up within a stage: the long loops of a stage
+    /// (the closure's conjugate gradients) poll it, and `stop` then says why.
+    fn stop_flag(&self) -> Option<&AtomicBool> {
+        None
+    }
+}
+
+/// What the long loops of a stage poll (from any thread): the set-up's deadline
+/// (`solver.max_setup_seconds` from its start) and the observer's stop flag.
+#[derive(Clone, Copy)]
+pub struct SetupInterrupt<'a> {
+    deadline: Option<Instant>,
+    flag: Option<&'a AtomicBool>,
+}
+
+impl SetupInterrupt<'_> {
+    /// Never interrupts.
+    pub const NEVER: SetupInterrupt<'static> = SetupInterrupt {
+        deadline: None,
+        flag: None,
+    };
+    /// Whether the loop must stop now.
+    pub fn hit(&self) -> bool {
+        self.flag.is_some_and(|f| f.load(Ordering::Relaxed))
+            || self.deadline.is_some_and(|d| Instant::now() >= d)
     }
 }
 
@@ -118,6 +145,36 @@ impl<'a> SetupClock<'a> {
         }
         self.stage_start = Instant::now();
         Ok(seconds)
+    }
+
+    /// What the long loops of the current stage poll: the bound and the observer's flag.
+    pub(super) fn interrupt(&self) -> SetupInterrupt<'a> {
+        SetupInterrupt {
+            // A bound too large for the clock (1e300 s) is no deadline.
+            deadline: Duration::try_from_secs_f64(self.limit)
+                .ok()
+                .and_then(|d| self.start.checked_add(d)),
+            flag: self.observer.stop_flag(),
+        }
+    }
+
+    /// The error of a set-up whose `stage` stopped within (its loop saw the interrupt hit);
+    /// `progress` says how far the stage had come.
+    pub(super) fn interrupted(&self, stage: SetupStage, progress: &str) -> SimError {
+        let elapsed = self.elapsed();
+        if let Some(why) = self.observer.stop() {
+            return SimError::Stopped(format!(
+                "during the {} stage ({elapsed:.1} s into the set-up; {progress}): {why}",
+                stage.name()
+            ));
+        }
+        SimError::SetupTooLong {
+            what: format!(
+                "the set-up was stopped after {elapsed:.1} s, during its {} stage ({progress})",
+                stage.name()
+            ),
+            limit: self.limit,
+        }
     }
 
     /// After the bonds stage (`bonds_seconds`): the whole set-up's estimated duration from

@@ -417,6 +417,13 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
     let archive = archive(scene, &xml, &doc, &lib, &meshes)
         .map_err(|e| format!("cannot make the FMU archive of {}: {e}", out.display()))?;
     drop(lib);
+    replace_file(out, &archive)
+}
+
+/// Writes `data` to `out` as a whole or not at all: into a new file beside it, synced, then
+/// renamed over it (an existing regular file is replaced; a link, a directory or a device is
+/// refused, [`check_output_target`]). Errors name the path and the OS reason.
+pub fn replace_file(out: &Path, data: &[u8]) -> Result<(), String> {
     let dir = match out.parent().filter(|d| !d.as_os_str().is_empty()) {
         Some(dir) => {
             std::fs::create_dir_all(dir)
@@ -433,7 +440,7 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
         file_name.to_string_lossy(),
         std::process::id()
     ));
-    let result = write_new_file(&tmp, &archive)
+    let result = write_new_file(&tmp, data)
         .and_then(|()| check_output_target(out))
         .and_then(|()| {
             std::fs::rename(&tmp, out)

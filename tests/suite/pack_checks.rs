@@ -209,6 +209,50 @@ fn pack_cli(out: &Path) -> (bool, String) {
 }
 
 #[test]
+fn write_xml_replaces_a_file_whole_and_follows_no_link() {
+    // Issue 27 (left from its audit): `mps pack --xml-only --write-xml DIR` wrote
+    // DIR/<scene>.xml with a plain write, which follows a link there (and truncates before
+    // writing). It now writes as the FMU is written: a new file renamed over the old one.
+    let d = scratch("xml");
+    let xml = |dir: &Path| {
+        let r = Command::new(env!("CARGO_BIN_EXE_mps"))
+            .args(["pack", "--xml-only", "--write-xml"])
+            .arg(dir)
+            .arg(root().join("tests/data/small2d.json"))
+            .output()
+            .unwrap();
+        (
+            r.status.success(),
+            String::from_utf8_lossy(&r.stderr).into_owned(),
+        )
+    };
+    // An old file is replaced by the whole description.
+    let f = d.join("small2d.xml");
+    std::fs::write(&f, b"old").unwrap();
+    let (ok, e) = xml(&d);
+    assert!(ok, "{e}");
+    let written = std::fs::read_to_string(&f).unwrap();
+    assert!(
+        written.starts_with("<?xml") && written.trim_end().ends_with("</fmiModelDescription>"),
+        "{written}"
+    );
+    assert_eq!(listing(&d), ["small2d.xml"], "no temporary file is left");
+    // A link there is refused and left alone, and so is the file it points to.
+    let target = d.join("elsewhere.txt");
+    std::fs::write(&target, b"keep me").unwrap();
+    std::fs::remove_file(&f).unwrap();
+    std::os::unix::fs::symlink(&target, &f).unwrap();
+    let (ok, e) = xml(&d);
+    assert!(!ok && e.contains("is a symbolic link"), "{e}");
+    assert!(std::fs::symlink_metadata(&f)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(std::fs::read(&target).unwrap(), b"keep me");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
 fn an_output_that_is_not_a_regular_file_is_refused_and_left_alone() {
     use std::os::unix::fs::FileTypeExt;
     let d = scratch("target");

@@ -479,7 +479,7 @@ fn pack_one(
         let f = dir.join(format!("{}.xml", sc.name));
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create the directory {}: {e}", dir.display()))?;
-        std::fs::write(&f, &xml).map_err(|e| format!("cannot write {}: {e}", f.display()))?;
+        mps_solid::fmi::pack::replace_file(&f, xml.as_bytes())?;
         println!("wrote {}", f.display());
     }
     if let Some(dir) = check_xml {

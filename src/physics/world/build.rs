@@ -547,8 +547,10 @@ where
 /// refuses a set-up hours long, not one a few tens of percent over its bound. Measured with
 /// `mps run` on a loaded 2-core machine (BENCHMARKS.md, "Set-up stages": small3d at
 /// 0.00625 m, 18,944 particles: fits 5.7, stable step and initial forces 49 bonds-stage
-/// seconds), rounded up; the closure's cost is a guess (that body has a rigid grip, which
-/// keeps the plain fits: no closure).
+/// seconds), rounded up. The closure's 60 is far below what a bulky clamped body's closure
+/// takes (500-800 bonds-stage seconds for a 15^3 cube or small3d at 0.00625 m: its solves run
+/// on a box of at most 17 layers per axis, so no per-bond figure prices them); its solves
+/// check the bound themselves (`sbp::close`).
 const SECOND_ORDER_FITS: f64 = 10.0;
 const SECOND_ORDER_CLOSURE: f64 = 60.0;
 const FIRST_ORDER_FITS: f64 = 5.0;

@@ -1,7 +1,7 @@
 """The packed FMUs under fmpy: validation, the paper's cases 1 and 2 through simulate_fmu, a
 communication step that does not divide the stop time, rollback with get/set FMU state.
 
-Run by scripts/fmu_tests.sh, which packs scenes/*.json and tests/data/*.json into target/fmu/
+Run by scripts/fmu_tests.sh, which packs scenes/*.json and tests/data/small*.json into target/fmu/
 (MPS_FMU_DIR overrides the directory).
 """
 import json

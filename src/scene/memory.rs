@@ -27,7 +27,7 @@ const BOND_BYTES: [u64; 2] = [32, 40];
 /// memory work: 3,783 B per particle in 3D at large sizes, 7,000-7,550 before the interning.
 const SECOND_ORDER_BASE_BYTES: [u64; 2] = [400, 800];
 const SECOND_ORDER_BOND_BYTES: [u64; 2] = [49, 66];
-/// The summation-by-parts closure of a second_order body (src/physics/sbp.rs) builds the operator
+/// The summation-by-parts closure of a second_order body (src/physics/sbp/) builds the operator
 /// once more on a reduced box of at most 17 layers a side during the build, with its
 /// conjugate-gradient systems: `CLOSURE_BOX_BYTES` per particle of the reduced box (min of the
 /// body's particles and 17^D), on top of `CLOSURE_SHARE` of the per-particle cost of the whole

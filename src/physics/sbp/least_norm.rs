@@ -1,0 +1,317 @@
+//! The least-norm weight corrections of the summation-by-parts closure (module `sbp`): the
+//! constraints on them, solved matrix-free by conjugate gradients that a caller can stop.
+use super::{monomials, quad_len};
+use crate::par_iter_mut;
+use crate::physics::bonds::Bonds;
+use crate::physics::dim::{Dim, Space};
+#[allow(unused_imports)]
+use crate::physics::par::*;
+use crate::physics::second_order;
+
+/// Relative residual at which the conjugate gradients stop.
+const TOLERANCE: f64 = 1e-9;
+
+/// Most conjugate-gradient iterations per axis.
+pub(super) const MAX_ITERATIONS: usize = 20000;
+
+/// The constraints on the corrections c_b (one per directed bond, for one axis): each row's
+/// corrections orthogonal to the quadratic monomials of its bonds (the fit stays exact), and
+/// each column's sums against the linear fields, in local coordinates phi_0 = 1,
+/// phi_a = (x_a - x_k,a) / l0, equal to a target. The least-norm solution is c = P A^T y with
+/// (A P A^T) y = t, solved by Jacobi-preconditioned conjugate gradients (matrix-free, per row
+/// and per column in parallel).
+pub(super) struct NullSpaceConstraints<'a, const D: usize> {
+    bonds: &'a Bonds<D>,
+    mirror: Vec<u32>,
+    /// Monomials of every bond's r0 / l0 (quad_len(D) per bond).
+    mono: Vec<f64>,
+    /// Inverse Gram matrix of each row's monomials.
+    gram_inv: &'a [nalgebra::DMatrix<f64>],
+    l0: f64,
+    nq: usize,
+    /// Diagonal of A P A^T.
+    diag: Vec<f64>,
+    /// Rows of each class.
+    members: Vec<Vec<u32>>,
+}
+
+impl<'a, const D: usize> NullSpaceConstraints<'a, D>
+where
+    Space: Dim<D>,
+{
+    pub(super) fn new(
+        bonds: &'a Bonds<D>,
+        gram_inv: &'a [nalgebra::DMatrix<f64>],
+        l0: f64,
+        nq: usize,
+        tie: Vec<u32>,
+    ) -> Self {
+        let m = quad_len(D);
+        let mut mono = Vec::with_capacity(bonds.len() * m);
+        let mut tmp = Vec::with_capacity(m);
+        for b in 0..bonds.len() {
+            monomials::<D>(&(bonds.r0[b] / l0), &mut tmp);
+            mono.extend_from_slice(&tmp);
+        }
+        let n = bonds.start.len() - 1;
+        let mut sys = NullSpaceConstraints {
+            bonds,
+            mirror: second_order::mirror_index(bonds),
+            mono,
+            gram_inv,
+            l0,
+            nq,
+            diag: vec![0.0; n * nq],
+            members: {
+                let nc = tie.iter().map(|&t| t as usize + 1).max().unwrap_or(0);
+                let mut m = vec![Vec::new(); nc];
+                for (i, &t) in tie.iter().enumerate() {
+                    m[t as usize].push(i as u32);
+                }
+                m
+            },
+        };
+        // diag = |P A^T e_(k,a)|^2: the incoming bonds of k lie in other rows (one entry each:
+        // |P e_b|^2 = 1 - mono_b^T Ginv mono_b), the constant field also has -1 on all of row
+        // k's own bonds.
+        let keep = |b: usize, i: usize| -> f64 {
+            let mb = &sys.mono[b * m..(b + 1) * m];
+            let g = &sys.gram_inv[i];
+            let mut s = 0.0;
+            for r in 0..m {
+                for c in 0..m {
+                    s += mb[r] * g[(r, c)] * mb[c];
+                }
+            }
+            1.0 - s
+        };
+        let mut diag = vec![0.0; n * nq];
+        for k in 0..n {
+            for b in bonds.of(k) {
+                let back = sys.mirror[b] as usize; // j -> k, in row j
+                let j = bonds.nbr[b] as usize;
+                let kb = keep(back, j);
+                let r = bonds.r0[b] / l0; // x_j - x_k
+                diag[k * nq] += kb;
+                for a in 0..D {
+                    diag[k * nq + 1 + a] += kb * r[a] * r[a];
+                }
+            }
+            let mut ones = vec![-1.0; bonds.of(k).len()];
+            sys.project_row(k, &mut ones);
+            diag[k * nq] += ones.iter().map(|v| v * v).sum::<f64>();
+        }
+        sys.diag = diag;
+        sys
+    }
+
+    fn project_row(&self, i: usize, c: &mut [f64]) {
+        let m = quad_len(D);
+        let start = self.bonds.start[i] as usize;
+        let mut pc = [0.0; 9];
+        for (k, v) in c.iter().enumerate() {
+            let mb = &self.mono[(start + k) * m..(start + k + 1) * m];
+            for r in 0..m {
+                pc[r] += mb[r] * v;
+            }
+        }
+        let g = &self.gram_inv[i];
+        let mut lam = [0.0; 9];
+        for r in 0..m {
+            for c2 in 0..m {
+                lam[r] += g[(r, c2)] * pc[c2];
+            }
+        }
+        for (k, v) in c.iter_mut().enumerate() {
+            let mb = &self.mono[(start + k) * m..(start + k + 1) * m];
+            let mut s = 0.0;
+            for r in 0..m {
+                s += mb[r] * lam[r];
+            }
+            *v -= s;
+        }
+    }
+
+    /// c = P A^T y, per row.
+    fn at_project(&self, y: &[f64], c: &mut [f64]) {
+        let nq = self.nq;
+        let mut rows: Vec<&mut [f64]> = Vec::with_capacity(self.bonds.start.len() - 1);
+        let mut rest: &mut [f64] = c;
+        for i in 0..self.bonds.start.len() - 1 {
+            let (head, tail) = rest.split_at_mut(self.bonds.of(i).len());
+            rows.push(head);
+            rest = tail;
+        }
+        par_iter_mut!(rows).enumerate().for_each(|(i, row)| {
+            for (k, b) in self.bonds.of(i).enumerate() {
+                let j = self.bonds.nbr[b] as usize;
+                let r = self.bonds.r0[b] / self.l0;
+                let mut s = y[j * nq] - y[i * nq];
+                for a in 0..D {
+                    s -= y[j * nq + 1 + a] * r[a];
+                }
+                row[k] = s;
+            }
+            self.project_row(i, row);
+        });
+        // Tie: every row of a class gets the sum over the class (T T^T; the projection is the
+        // same for all rows of a class, so it commutes).
+        let mut sum = Vec::new();
+        for members in &self.members {
+            if members.len() < 2 {
+                continue;
+            }
+            let first = members[0] as usize;
+            let len = self.bonds.of(first).len();
+            sum.clear();
+            sum.resize(len, 0.0);
+            for &i in members {
+                let st = self.bonds.start[i as usize] as usize;
+                for k in 0..len {
+                    sum[k] += c[st + k];
+                }
+            }
+            for &i in members {
+                let st = self.bonds.start[i as usize] as usize;
+                c[st..st + len].copy_from_slice(&sum);
+            }
+        }
+    }
+
+    /// y = A c, per column: the incoming bonds (j -> k: phi(x_j - x_k) = r0 of k -> j) minus
+    /// the constant field on row k's own bonds.
+    fn apply(&self, c: &[f64], y: &mut [f64]) {
+        let nq = self.nq;
+        let mut cols: Vec<&mut [f64]> = y.chunks_mut(nq).collect();
+        par_iter_mut!(cols).enumerate().for_each(|(k, yk)| {
+            yk.iter_mut().for_each(|v| *v = 0.0);
+            for b in self.bonds.of(k) {
+                let cin = c[self.mirror[b] as usize];
+                let r = self.bonds.r0[b] / self.l0;
+                yk[0] += cin - c[b];
+                for a in 0..D {
+                    yk[1 + a] += cin * r[a];
+                }
+            }
+        });
+    }
+
+    /// Least-norm corrections for target t; returns (c, iterations, |A c - t|), or Err(how far
+    /// it had come) when `stop` says so (polled every iteration).
+    pub(super) fn solve(
+        &self,
+        t: &[f64],
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<(Vec<f64>, usize, f64), Unfinished> {
+        let started = std::time::Instant::now();
+        let n = t.len();
+        let nb = self.bonds.len();
+        let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let precond = |r: &[f64], z: &mut [f64]| {
+            for k in 0..n {
+                z[k] = if self.diag[k] > 0.0 {
+                    r[k] / self.diag[k]
+                } else {
+                    0.0
+                };
+            }
+        };
+        let mut yv = vec![0.0; n];
+        let mut c = vec![0.0; nb];
+        let mut ap = vec![0.0; n];
+        let mut z = vec![0.0; n];
+        let mut iters = 0;
+        // Conjugate gradients keeping the best iterate: the tied system is consistent only to
+        // a floor (1e-8 to 1e-4 of the target on some axes), below which the iterates drift
+        // and, in long runs, diverge; the run stops there or at the tolerance.
+        let mut r = t.to_vec();
+        precond(&r, &mut z);
+        let mut p = z.clone();
+        let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+        let mut best = (f64::INFINITY, yv.clone());
+        // The smallest residual so far after each iteration: its trend tells an interrupted
+        // solve how far it has to go.
+        let mut lowest = Vec::new();
+        while iters < MAX_ITERATIONS {
+            let rnorm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if rnorm < 0.7 * best.0 {
+                best = (rnorm, yv.clone());
+            }
+            if rnorm <= TOLERANCE * tnorm || rnorm > 1e3 * best.0 {
+                break;
+            }
+            lowest.push(rnorm.min(lowest.last().copied().unwrap_or(f64::INFINITY)));
+            if stop() {
+                return Err(Unfinished::new(
+                    &lowest,
+                    TOLERANCE * tnorm,
+                    started.elapsed().as_secs_f64(),
+                ));
+            }
+            self.at_project(&p, &mut c);
+            self.apply(&c, &mut ap);
+            let pap: f64 = p.iter().zip(&ap).map(|(a, b)| a * b).sum();
+            if pap <= 0.0 || rz <= 0.0 {
+                break;
+            }
+            let alpha = rz / pap;
+            for k in 0..n {
+                yv[k] += alpha * p[k];
+                r[k] -= alpha * ap[k];
+            }
+            iters += 1;
+            precond(&r, &mut z);
+            let rz_new: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for k in 0..n {
+                p[k] = z[k] + beta * p[k];
+            }
+        }
+        let yv = best.1;
+        self.at_project(&yv, &mut c);
+        self.apply(&c, &mut ap);
+        let res = ap
+            .iter()
+            .zip(t)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            .sqrt();
+        Ok((c, iters, res))
+    }
+}
+
+/// How far an interrupted conjugate-gradient solve had come.
+pub(super) struct Unfinished {
+    pub(super) iterations: usize,
+    /// Its residual relative to the one it stops at.
+    pub(super) above_goal: f64,
+    /// Seconds it would still need at its pace: its recent convergence rate (the smallest
+    /// residual over the second half of its iterations) carried to the goal, at most to
+    /// MAX_ITERATIONS.
+    pub(super) more_seconds: f64,
+}
+
+impl Unfinished {
+    /// `lowest`: the smallest residual after each iteration; `goal`: the residual it stops at.
+    fn new(lowest: &[f64], goal: f64, seconds: f64) -> Self {
+        let n = lowest.len();
+        let now = lowest[n - 1];
+        let half = lowest[n / 2];
+        let per_iteration = seconds / n as f64;
+        let rate = (now.ln() - half.ln()) / (n - n / 2) as f64;
+        let left = (MAX_ITERATIONS - n) as f64;
+        let more = if rate < 0.0 && now > goal {
+            ((goal.ln() - now.ln()) / rate).min(left)
+        } else if now <= goal {
+            0.0
+        } else {
+            left
+        };
+        Unfinished {
+            iterations: n,
+            above_goal: now / goal,
+            more_seconds: more * per_iteration,
+        }
+    }
+}

@@ -34,25 +34,44 @@ trap 'kill $prep_fmu $prep_fuzz 2>/dev/null || true' EXIT
 echo "== cargo build --release"
 cargo build --release
 stamp
+# Every stage runs whatever the ones before it gave (a failed test does not hide the others);
+# each stage's exit status counts besides the summed test counts, so a build that fails before
+# any test runs is a failure too.
 echo "== cargo test --release"
+set +e
 cargo test --release --no-fail-fast -- --include-ignored 2>&1 | tee target/cargo-test.log
+rust_rc=${PIPESTATUS[0]}
+set -e
 stamp
 echo "== FMU tests"
 if ! wait $prep_fmu; then
     echo "the Python environment or the portable FMU binary failed:"
     tail -n 30 target/prep-python.log target/prep-fmu-lib.log
     echo "FMU tests: 0 passed, 1 failed" | tee target/fmu-test.log
+    fmu_rc=1
 else
+    set +e
     scripts/fmu_tests.sh 2>&1 | tee target/fmu-test.log
+    fmu_rc=${PIPESTATUS[0]}
+    set -e
 fi
 stamp
 echo "== fuzz"
 # cargo-fuzz targets (nightly), about 20 s each; fails on any crash. See scripts/fuzz.sh.
 wait $prep_fuzz || true
 cat target/prep-fuzz.log
+set +e
 scripts/fuzz.sh 2>&1 | tee target/fuzz-test.log
+fuzz_rc=${PIPESTATUS[0]}
+set -e
 stamp
 passed=$(grep -hEo '[0-9]+ passed' target/cargo-test.log target/fmu-test.log target/fuzz-test.log | awk '{s+=$1} END {print s+0}')
 failed=$(grep -hEo '[0-9]+ failed' target/cargo-test.log target/fmu-test.log target/fuzz-test.log | awk '{s+=$1} END {print s+0}')
 echo "all: $passed passed, $failed failed"
+for stage in "Rust tests:$rust_rc" "FMU tests:$fmu_rc" "fuzz:$fuzz_rc"; do
+    if [ "${stage##*:}" != 0 ]; then
+        echo "${stage%:*} exited with status ${stage##*:}"
+        failed=$((failed > 0 ? failed : 1))
+    fi
+done
 [ "$failed" = 0 ]

@@ -68,11 +68,6 @@ pub struct SetupInterrupt<'a> {
 }
 
 impl SetupInterrupt<'_> {
-    /// Never interrupts.
-    pub const NEVER: SetupInterrupt<'static> = SetupInterrupt {
-        deadline: None,
-        flag: None,
-    };
     /// Whether the loop must stop now.
     pub fn hit(&self) -> bool {
         self.flag.is_some_and(|f| f.load(Ordering::Relaxed))

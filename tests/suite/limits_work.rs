@@ -274,6 +274,7 @@ fn the_bound_ends_the_closure_when_it_is_reached() {
     if !e.contains("the set-up would take about") {
         assert!(
             e.contains("during its closure stage")
+                && e.contains("the closure of body 'cube'")
                 && e.contains("conjugate-gradient iteration")
                 && e.contains("s more"),
             "{e}"

@@ -126,7 +126,7 @@ fn monomials<const D: usize>(s: &Vect<D>, out: &mut Vec<f64>) {
 
 /// Closes the second-order operator of every body that is a filled lattice box once mirrored
 /// across its mirror faces. `so` is the world's operator (its rigid flags and ghosts),
-/// `bonds` the world's bonds. `stop` is polled in the solves (from any thread): when it says
+/// `bonds` the world's bonds, `names` the bodies' names. `stop` is polled in the solves (from any thread): when it says
 /// so, the closure ends at once with `interrupted` set.
 #[allow(clippy::too_many_arguments)]
 pub fn close<const D: usize>(
@@ -136,7 +136,7 @@ pub fn close<const D: usize>(
     so: &SecondOrder<D>,
     l0: f64,
     re_factor: f64,
-    n_bodies: usize,
+    names: &[&str],
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Closure<D>
 where
@@ -150,9 +150,9 @@ where
         interrupted: None,
     };
     let ghost_of: HashMap<u32, &Ghost<D>> = so.ghosts.iter().map(|g| (g.ghost, g)).collect();
-    for b in 0..n_bodies {
+    for (b, name) in names.iter().enumerate() {
         let r = close_body(
-            x0, body, bonds, so, &ghost_of, l0, re_factor, b as u32, stop, &mut out,
+            x0, body, bonds, so, &ghost_of, l0, re_factor, b as u32, name, stop, &mut out,
         );
         out.report.push(r);
         if out.interrupted.is_some() {
@@ -172,6 +172,7 @@ fn close_body<const D: usize>(
     l0: f64,
     re_factor: f64,
     b: u32,
+    name: &str,
     stop: &(dyn Fn() -> bool + Sync),
     out: &mut Closure<D>,
 ) -> Result<String, String>
@@ -535,7 +536,7 @@ where
             .max_by(|a, b| a.1.more_seconds.total_cmp(&b.1.more_seconds))
             .expect("an interrupted axis");
         let why = format!(
-            "the closure of body {b} was solving its constraints on a box of {small:?} \
+            "the closure of body '{name}' was solving its constraints on a box of {small:?} \
              particles: axis {d} at conjugate-gradient iteration {} of at most {MAX_ITERATIONS}, \
              its residual {:.1e} times the one it stops at; at its pace it needed about {:.0} s \
              more",

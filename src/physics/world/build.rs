@@ -402,7 +402,7 @@ where
                 &op.second,
                 l0,
                 options.re_factor,
-                bodies.len(),
+                &bodies.iter().map(|b| b.name.as_str()).collect::<Vec<_>>(),
                 &|| interrupt.hit(),
             );
             if let Some(progress) = &cl.interrupted {

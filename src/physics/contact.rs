@@ -11,9 +11,17 @@
 //! law is conservative, U(r) = k_c (l0 - r)^2 / 2, frictionless (Eq. (31) has no reference
 //! vector across a contact) and has no pressure part (no volumetric strain across a contact).
 //!
-//! Contact distance of a pair: l0 between bodies and between particles of one body that were
-//! never bonded (farther than re > l0 apart in the reference state); min(l0, |r0_ij|) across a
-//! broken bond. A bond breaks only in tension, longer than |r0_ij|, so the contact across it
+//! Contact distance of a pair: the sum of the two particles' contact radii between bodies and
+//! between particles of one body that were never bonded (farther than re > l0 apart in the
+//! reference state); the smaller of that and |r0_ij| across a broken bond. A particle's contact
+//! radius is l0 / 2 (a box body's face is half a spacing out from its particles), so the
+//! distance is l0 for boxes. A particle of a body filled from a solid (scene shapes) stands for
+//! the largest ball about its centre inside the solid: its radius is the centre's distance to
+//! the solid's surface (at most [`max_radius`]), so the particles' balls follow a curved
+//! face instead of the lattice's staircase. Why (issue 26): a ball of 10 particles across has
+//! a flat bottom layer 0.03 m wide, a whole spacing above the sphere's lowest point; with l0
+//! for every pair it hit a plate as a flat punch and its contact lasted 12.3 ms against
+//! Hertz's 20.4 ms. A bond breaks only in tension, longer than |r0_ij|, so the contact across it
 //! never starts inside its range: breaking releases the bond's energy and adds none (issue 7:
 //! a face layer half a spacing from the next, as the holder of tests/data/small2d.json, got
 //! k_c (l0/2)^2 / 2 of contact energy per broken pair, 547 J -> 985 J). The overlap limit of a
@@ -48,6 +56,14 @@ use crate::par_iter_mut;
 /// (it grows with the speed: -0.39 % at 8 m/s closing). At the overlap limit (0.5 c) the force
 /// is 70 % of the paper spring's.
 pub const ONSET: f64 = 0.3;
+
+/// Largest contact radius of a particle filled from a solid (m): l0, as a particle deeper below
+/// the surface is not what a partner meets first (its shallower neighbours are), and below
+/// 0.45 re, so that two particles of one body that were never bonded (farther apart than re)
+/// are never in contact at rest. The pair search reaches twice it plus the skin.
+pub fn max_radius(l0: f64, re: f64) -> f64 {
+    l0.min(0.45 * re)
+}
 
 /// Magnitude of the repulsive contact force at distance r (N) for the pair stiffness k_c and the
 /// pair's contact distance `c` (the spacing l0, or a shorter reference length of a broken
@@ -123,10 +139,15 @@ pub struct Contact<const D: usize> {
     start: Vec<u32>,
     nbr: Vec<u32>,
     repel: Vec<bool>,
-    /// Contact distance per list entry (m): l0 between bodies; min(l0, |X_j - X_i|) within a body,
-    /// so a pair whose bond breaks is never inside its contact range at the moment of breaking
-    /// (a bond broken in tension is longer than its reference length).
+    /// Contact distance per list entry (m): the sum of the contact radii between bodies; the
+    /// smaller of that and |X_j - X_i| within a body, so a pair whose bond breaks is never
+    /// inside its contact range at the moment of breaking (a bond broken in tension is longer
+    /// than its reference length).
     reach: Vec<f64>,
+    /// Contact radius per particle (m); empty: l0 / 2 for every particle (box bodies).
+    radius: Vec<f64>,
+    /// Largest contact radius (m).
+    max_radius: f64,
     /// Contact force per surface particle (scratch).
     f_s: Vec<Vect<D>>,
     /// First overlap found per surface particle (scratch).
@@ -147,6 +168,7 @@ impl<const D: usize> Contact<D> {
         body: &[u32],
         bonds: &Bonds<D>,
         fracture: bool,
+        radius: Vec<f64>,
     ) -> Self {
         let nb = mu.len();
         let d = D as f64;
@@ -187,6 +209,8 @@ impl<const D: usize> Contact<D> {
             nbr: Vec::new(),
             repel: Vec::new(),
             reach: Vec::new(),
+            max_radius: radius.iter().fold(0.5 * l0, |a, &r| a.max(r)),
+            radius,
             f_s: Vec::new(),
             hit: Vec::new(),
             needs_rebuild: true,
@@ -250,17 +274,32 @@ impl<const D: usize> Contact<D> {
         self.rebuild(x, u, body, bonds);
     }
 
+    /// Contact distance of particles i and j of different bodies, or of one body without a bond
+    /// between them (m): the sum of their contact radii.
+    #[inline(always)]
+    fn pair_distance(&self, i: usize, j: usize) -> f64 {
+        if self.radius.is_empty() {
+            self.l0
+        } else {
+            self.radius[i] + self.radius[j]
+        }
+    }
+
     fn rebuild(&mut self, x: &[Vect<D>], u: &[Vect<D>], body: &[u32], bonds: &Bonds<D>) {
         self.searches += 1;
         self.needs_rebuild = false;
-        let reach = (1.0 + self.opts.skin) * self.l0;
+        let reach = if self.radius.is_empty() {
+            (1.0 + self.opts.skin) * self.l0
+        } else {
+            2.0 * self.max_radius + self.opts.skin * self.l0
+        };
         // Binned by the current positions x = X + u: far from the origin their differences are
         // rounded, which only moves pairs at the edge of the skin, never one within l0.
         let grid = CellGrid::build(x, Some(&self.surface_ids), reach);
         let ids = &self.surface_ids;
         let same_body = self.same_body;
         let repel_same = self.opts.fractured_surfaces;
-        let l0 = self.l0;
+        let this = &*self;
         let mut lists: Vec<Vec<(u32, bool, f64)>> = vec![Vec::new(); ids.len()];
         par_iter_mut!(lists).enumerate().for_each(|(s, out)| {
             let i = ids[s] as usize;
@@ -269,17 +308,18 @@ impl<const D: usize> Contact<D> {
                 if ju == i {
                     return;
                 }
+                let c = this.pair_distance(i, ju);
                 if body[ju] != body[i] {
-                    out.push((j, true, l0));
+                    out.push((j, true, c));
                 } else if same_body {
                     match bond_of(bonds, i, j) {
                         // Intact bond: no contact.
                         Some(k) if bonds.w0[k] != 0.0 => {}
                         // Broken bond: contact from its reference length on (the same to the
                         // bit in both directions, r0_ji = -r0_ij).
-                        Some(k) => out.push((j, repel_same, l0.min(bonds.r0[k].norm()))),
-                        // Never bonded: farther than re > l0 in the reference state.
-                        None => out.push((j, repel_same, l0)),
+                        Some(k) => out.push((j, repel_same, c.min(bonds.r0[k].norm()))),
+                        // Never bonded: farther than re > 2 max_radius in the reference state.
+                        None => out.push((j, repel_same, c)),
                     }
                 }
             });
@@ -403,15 +443,17 @@ impl<const D: usize> Contact<D> {
         count
     }
 
-    /// Pairs closer than l0 now, each pair once: (different bodies, same body across a broken
-    /// bond), the latter whether they repel or not.
+    /// Pairs closer than their contact radii's sum now (l0 for boxes), each pair once:
+    /// (different bodies, same body across a broken bond), the latter whether they repel or
+    /// not.
     pub fn pairs_by_kind(&self, x0: &[Vect<D>], u: &[Vect<D>], body: &[u32]) -> (usize, usize) {
         let (mut inter, mut same) = (0, 0);
         for (s, &i) in self.surface_ids.iter().enumerate() {
             let i = i as usize;
             for e in self.start[s] as usize..self.start[s + 1] as usize {
                 let j = self.nbr[e] as usize;
-                if j > i && rel(x0, u, i, j).norm_squared() < self.l0 * self.l0 {
+                let c = self.pair_distance(i, j);
+                if j > i && rel(x0, u, i, j).norm_squared() < c * c {
                     if body[i] == body[j] {
                         same += 1;
                     } else {

@@ -235,6 +235,7 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
     // (the length of the summed vector would lose the patch's curvature, ~2 % on a sphere of
     // 10 across).
     let mut scalar: Vec<f64> = Vec::new();
+    let mut depths: Vec<f64> = Vec::new();
     let len = |a: &[f64; 3]| (0..D).map(|k| a[k] * a[k]).sum::<f64>().sqrt();
     let mut cut_at = 0usize;
     let mut orphans = Vec::new();
@@ -250,6 +251,7 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
             slot[c] = points.len() as u32;
             let p = centre(c);
             points.push(Vect::<D>::from_fn(|a, _| p[a]));
+            depths.push(-dist[c]);
             match cell {
                 Some((f, _, area)) => {
                     volumes.push(f * full);
@@ -363,6 +365,7 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
             volumes,
             normals,
             areas: area,
+            depths,
         }),
         lost_volume: lost,
     })

@@ -124,18 +124,29 @@ where
             }
             if let Some(s) = &body.shape {
                 let n = body.points.len();
-                if s.volumes.len() != n || s.normals.len() != n || s.areas.len() != n {
+                if s.volumes.len() != n
+                    || s.normals.len() != n
+                    || s.areas.len() != n
+                    || s.depths.len() != n
+                {
                     return Err(SimError::Invalid(format!(
-                        "body '{}' (bodies[{b}]) has {n} points but {} volumes, {} normals and {} areas",
+                        "body '{}' (bodies[{b}]) has {n} points but {} volumes, {} normals, {} areas and {} depths",
                         body.name,
                         s.volumes.len(),
                         s.normals.len(),
-                        s.areas.len()
+                        s.areas.len(),
+                        s.depths.len()
                     )));
                 }
                 if let Some(v) = s.volumes.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
                     return Err(SimError::Invalid(format!(
                         "body '{}' (bodies[{b}]): a particle volume is {v} m^d, not positive",
+                        body.name
+                    )));
+                }
+                if let Some(v) = s.depths.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+                    return Err(SimError::Invalid(format!(
+                        "body '{}' (bodies[{b}]): a particle's depth below the solid's surface is {v} m, not positive",
                         body.name
                     )));
                 }
@@ -369,8 +380,12 @@ where
         // Particle volumes of bodies filled from solids (the closure below replaces those of a
         // body it closes).
         let mut surface = Vec::new();
+        // Contact radii (module `contact`): empty, every particle l0 / 2, unless a body is
+        // filled from a solid.
+        let mut contact_radius = Vec::new();
         if bodies.iter().any(|b| b.shape.is_some()) {
             surface = vec![(Vect::<D>::zeros(), 0.0); n];
+            contact_radius = vec![0.5 * l0; n];
             let mut at = 0usize;
             for body in &bodies {
                 if let Some(s) = &body.shape {
@@ -378,6 +393,8 @@ where
                         op.vol[at + k] = s.volumes[k];
                         op.base_vol[at + k] = s.volumes[k];
                         surface[at + k] = (s.normals[k], s.areas[k]);
+                        contact_radius[at + k] =
+                            s.depths[k].min(crate::physics::contact::max_radius(l0, re));
                     }
                 }
                 at += body.points.len();
@@ -457,6 +474,7 @@ where
             &p.body,
             &bonds,
             options.fracture_strain.is_some(),
+            contact_radius,
         );
         let mut world = World {
             options,

@@ -209,6 +209,10 @@ pub struct ShapeFill<const D: usize> {
     pub normals: Vec<Vect<D>>,
     /// Area of that surface (m^(d-1); per m of depth in 2D; 0 inside).
     pub areas: Vec<f64>,
+    /// Distance from the particle's centre to the solid's surface (m, > 0): the radius of the
+    /// largest ball about the centre inside the solid, which is what the particle stands for in
+    /// contact (module `contact`).
+    pub depths: Vec<f64>,
 }
 
 /// Initial velocity of the particles of a body. Particles of a boundary group start with zero

@@ -45,6 +45,11 @@ pub struct ElasticOperator<const D: usize> {
     pub base_vol: Vec<f64>,
     /// Particle spacing l0 (m).
     pub l0: f64,
+    /// Second-order model: first and second moments per unit volume (m, m^2) of the solid each
+    /// particle stands for, about its centre (bodies filled from solids, issue 26); empty when
+    /// every particle is a whole lattice cell (0 and l0^2 / 12 I). Its cell energy integrates
+    /// the energy density's Taylor expansion with them, exactly for a quadratic density.
+    pub cell_moments: Vec<(Vect<D>, Mat<D>)>,
     /// Second-order model: its bond weights (empty for the other models).
     pub second: SecondOrder<D>,
     /// Energy operators: the share of particle i's energy it keeps, 1 until a break. At a
@@ -104,6 +109,7 @@ where
             vol: vec![l0.powi(D as i32); n_particles],
             base_vol: vec![l0.powi(D as i32); n_particles],
             l0,
+            cell_moments: Vec::new(),
             second: SecondOrder::default(),
             retained: vec![1.0; n_particles],
         };
@@ -127,11 +133,12 @@ where
     }
 
     /// The per-particle data of the second-order operator's cells.
-    fn cells(&self) -> Cells<'_> {
+    fn cells(&self) -> Cells<'_, D> {
         Cells {
             lame: &self.lame,
             laws: &self.laws,
             vol: &self.vol,
+            moments: &self.cell_moments,
             retained: &self.retained,
             volume: self.volume,
             l0: self.l0,

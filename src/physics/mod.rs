@@ -2,6 +2,7 @@
 //! conditions, time integration. Knows nothing of scene files, FMI or output formats.
 pub mod bonds;
 pub mod boundary;
+pub mod cell_term;
 pub mod contact;
 pub mod dim;
 pub mod elastic;

@@ -35,6 +35,7 @@
 use nalgebra::DMatrix;
 
 use super::bonds::Bonds;
+use super::cell_term;
 use super::dim::{Dim, Mat, Space, Vect};
 pub use super::ghosts::{Follower, Ghost, FACE_EXTRAPOLATION, FOLLOW, LUMP};
 use super::law;
@@ -126,18 +127,7 @@ pub struct SecondOrderScratch<const D: usize> {
     pub ueff: Vec<Vect<D>>,
 }
 
-/// What the energy of a particle's cell needs besides the weights: per-body Lame constants
-/// (mu, lambda in Pa) and laws, per-particle volume (m^d) and retained share, the particle
-/// volume l0^d of the residual terms and the spacing l0 (m).
-#[derive(Clone, Copy, Debug)]
-pub struct Cells<'a> {
-    pub lame: &'a [(f64, f64)],
-    pub laws: &'a [MaterialLaw],
-    pub vol: &'a [f64],
-    pub retained: &'a [f64],
-    pub volume: f64,
-    pub l0: f64,
-}
+pub use super::cell_term::Cells;
 
 /// Number of basis functions of the quadratic fit: D linear + D (D + 1) / 2 quadratic.
 const fn basis_len(d: usize) -> usize {
@@ -487,12 +477,6 @@ pub fn mirror_index<const D: usize>(bonds: &Bonds<D>) -> Vec<u32> {
     m
 }
 
-/// Linear isotropic stress of a (symmetric) strain: 2 mu e + lambda tr(e) I.
-#[inline(always)]
-fn lin_stress<const D: usize>(e: &Mat<D>, mu: f64, lambda: f64) -> Mat<D> {
-    e * (2.0 * mu) + Mat::<D>::identity() * (lambda * e.trace())
-}
-
 impl<const D: usize> SecondOrder<D>
 where
     Space: Dim<D>,
@@ -546,7 +530,13 @@ where
     /// Energy of particle i's cell at the current displacements (J) with its current fit,
     /// without its retained share: its term of [`SecondOrder::strain_energy`], evaluated from
     /// scratch (at a break, between force passes).
-    pub fn particle_energy(&self, p: &Particles<D>, bonds: &Bonds<D>, c: &Cells, i: usize) -> f64 {
+    pub fn particle_energy(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        c: &Cells<D>,
+        i: usize,
+    ) -> f64 {
         if self.rigid[i] {
             return 0.0;
         }
@@ -631,7 +621,7 @@ where
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
-        c: &Cells,
+        c: &Cells<D>,
         s: &mut SecondOrderScratch<D>,
         collapsed: &mut [u8],
         force: &mut [Vect<D>],
@@ -642,11 +632,11 @@ where
             lame,
             laws,
             vol,
+            moments,
             retained,
             volume,
             l0,
         } = *c;
-        let cell = l0 * l0 / 12.0;
         let derived = !self.ghosts.is_empty() || !self.followers.is_empty();
         if derived {
             s.ueff.clear();
@@ -712,14 +702,17 @@ where
                 let mut a_i = f * stress * vol[i];
                 let mut b_i = [Mat::<D>::zeros(); D];
                 if quad && !self.closed.get(i).copied().unwrap_or(false) {
-                    let vc = vol[i] * cell;
-                    for a in 0..D {
-                        let ea = f.transpose() * g[a];
-                        let sig = lin_stress(&((ea + ea.transpose()) * 0.5), mu, lambda);
-                        // d/dG^(a) of w(sym(F^T G)) = F sigma; d/dF = G sigma.
-                        b_i[a] = f * sig * vc;
-                        a_i += g[a] * sig * vc;
-                    }
+                    cell_term::conjugates(
+                        &f,
+                        &g,
+                        &e,
+                        (mu, lambda),
+                        vol[i],
+                        moments.get(i),
+                        l0,
+                        &mut a_i,
+                        &mut b_i,
+                    );
                 }
                 let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
                 // The residual terms of each bond, evaluated once: their direct part goes to
@@ -799,7 +792,7 @@ where
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
-        c: &Cells,
+        c: &Cells<D>,
         s: &SecondOrderScratch<D>,
     ) -> f64 {
         let uu: &[Vect<D>] = if self.ghosts.is_empty() && self.followers.is_empty() {
@@ -829,7 +822,7 @@ where
         &self,
         p: &Particles<D>,
         bonds: &Bonds<D>,
-        c: &Cells,
+        c: &Cells<D>,
         i: usize,
         h: &Mat<D>,
         g: &[Mat<D>; D],
@@ -839,14 +832,11 @@ where
             lame,
             laws,
             vol,
+            moments,
             volume,
             l0,
             ..
         } = *c;
-        let cell = l0 * l0 / 12.0;
-        let w = |e: &Mat<D>, mu: f64, lambda: f64| {
-            mu * e.component_mul(e).sum() + 0.5 * lambda * e.trace().powi(2)
-        };
         let body = p.body[i] as usize;
         let (mu, lambda) = lame[body];
         let f = self.span[i] + h;
@@ -860,10 +850,16 @@ where
                 .filter(|_| !inverted)
                 .unwrap_or(f64::INFINITY);
         if self.quadratic[i] && !self.closed.get(i).copied().unwrap_or(false) {
-            for ga in g.iter() {
-                let ea = f.transpose() * ga;
-                total += vol[i] * cell * w(&((ea + ea.transpose()) * 0.5), mu, lambda);
-            }
+            cell_term::energy(
+                &f,
+                g,
+                &e,
+                (mu, lambda),
+                vol[i],
+                moments.get(i),
+                l0,
+                &mut total,
+            );
         }
         let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
         let ui = uu(i);

@@ -113,9 +113,20 @@ pub(crate) fn lattice_range(
     Some((first, n))
 }
 
-/// A cell the surface may cross: the solid's volume fraction, its centroid (m) and the vector
-/// area of the surface in it (m^(d-1)).
-type CutCell = (f64, [f64; 3], [f64; 3]);
+/// A cell the surface may cross: the solid's volume fraction, its centroid (m), the vector
+/// area of the surface in it (m^(d-1)) and the second moment of the solid in it about the
+/// cell's centre, per unit cell volume (m^2).
+type CutCell = (f64, [f64; 3], [f64; 3], [[f64; 3]; 3]);
+
+/// Second moment of a whole cell about its centre per unit volume (m^2): l0^2 / 12 on the
+/// diagonal.
+fn whole_cell_moment(dp: f64, d: usize) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for (a, row) in m.iter_mut().enumerate().take(d) {
+        row[a] = dp * dp / 12.0;
+    }
+    m
+}
 
 /// Per boundary cell: the solid's volume in it (fraction of l0^d), its centroid and the vector
 /// area of the solid's surface in it (-sum over the cell's faces of their outward normal times
@@ -134,6 +145,8 @@ fn cut_cell(g: &Geometry, c: [f64; 3], dp: f64, d: usize) -> CutCell {
     let total = k.pow(d as u32);
     let mut frac = 0.0;
     let mut cen = [0.0; 3];
+    // About the cell's centre: each sub-cell's own h^2 / 12 and its centre's offset.
+    let mut m2 = [[0.0; 3]; 3];
     for code in 0..total {
         let mut idx = [0usize; 3];
         let mut r = code;
@@ -146,6 +159,10 @@ fn cut_cell(g: &Geometry, c: [f64; 3], dp: f64, d: usize) -> CutCell {
         frac += f;
         for a in 0..d {
             cen[a] += f * p[a];
+            for b in 0..d {
+                m2[a][b] += f * (p[a] - c[a]) * (p[b] - c[b]);
+            }
+            m2[a][a] += f * h * h / 12.0;
         }
     }
     if frac > 0.0 {
@@ -183,7 +200,13 @@ fn cut_cell(g: &Geometry, c: [f64; 3], dp: f64, d: usize) -> CutCell {
         f if f < 1e-9 => 0.0,
         f => f,
     };
-    (frac, cen, area)
+    let m2 = if frac == 1.0 {
+        cen = c;
+        whole_cell_moment(dp, d)
+    } else {
+        m2.map(|row| row.map(|v| v / total as f64))
+    };
+    (frac, cen, area, m2)
 }
 
 /// The particles of body k of a validated scene that has shapes or cuts (see `Body`).
@@ -222,7 +245,7 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
     // Pass 2: integrate the cells the surface may cross (in parallel: each writes its own).
     let mut cut: Vec<(usize, CutCell)> = (0..cells)
         .filter(|&c| dist[c].abs() < half_diagonal)
-        .map(|c| (c, (0.0, [0.0; 3], [0.0; 3])))
+        .map(|c| (c, (0.0, [0.0; 3], [0.0; 3], [[0.0; 3]; 3])))
         .collect();
     par_iter_mut!(cut).for_each(|(c, out)| *out = cut_cell(&g, centre(*c), dp, D));
     let full = dp.powi(D as i32);
@@ -236,6 +259,11 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
     // 10 across).
     let mut scalar: Vec<f64> = Vec::new();
     let mut depths: Vec<f64> = Vec::new();
+    // Per particle the first and second moments of its solid about its centre (m^(d+1),
+    // m^(d+2)).
+    let mut first_moments: Vec<[f64; 3]> = Vec::new();
+    let mut second_moments: Vec<[[f64; 3]; 3]> = Vec::new();
+    let whole = whole_cell_moment(dp, D).map(|row| row.map(|v| v * full));
     let len = |a: &[f64; 3]| (0..D).map(|k| a[k] * a[k]).sum::<f64>().sqrt();
     let mut cut_at = 0usize;
     let mut orphans = Vec::new();
@@ -253,30 +281,34 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
             points.push(Vect::<D>::from_fn(|a, _| p[a]));
             depths.push(-dist[c]);
             match cell {
-                Some((f, _, area)) => {
+                Some((f, cen, area, m2)) => {
                     volumes.push(f * full);
                     areas.push(area);
                     scalar.push(len(&area));
+                    first_moments.push(std::array::from_fn(|a| f * full * (cen[a] - p[a])));
+                    second_moments.push(m2.map(|row| row.map(|v| v * full)));
                 }
                 None => {
                     volumes.push(full);
                     areas.push([0.0; 3]);
                     scalar.push(0.0);
+                    first_moments.push([0.0; 3]);
+                    second_moments.push(whole);
                 }
             }
-        } else if let Some((f, cen, area)) = cell {
+        } else if let Some((f, cen, area, m2)) = cell {
             // A cell whose solid is below the sub-cells' resolution may still hold surface
             // (the solid touches its faces: half of a face on the lattice's cell faces, ~1.5 %
             // of a sphere's area at 10 across); it goes with the solid to the nearest particle.
             if f > 0.0 || len(&area) > 1e-9 * dp.powi(D as i32 - 1) {
-                orphans.push((c, f, cen, area));
+                orphans.push((c, f, cen, area, m2));
             }
         }
     }
     // The solid in cells whose centres are outside goes to the nearest particle within two
     // cells of it, so that the particles' volumes add up to the solid's.
     let mut lost = 0.0;
-    for (c, f, cen, area) in orphans {
+    for (c, f, cen, area, m2) in orphans {
         let mut idx = [0i64; 3];
         let mut r = c;
         for a in 0..D {
@@ -314,6 +346,22 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
         }
         match best {
             Some((_, i)) => {
+                // Its moments about the particle's centre x: the cell's about its own centre
+                // o shifted by d = o - x (M1 += V (cen - x); M2 += M2_o + M1_o d^T + d M1_o^T
+                // + V d d^T, M1_o = V (cen - o)).
+                let o = centre(c);
+                let x = &points[i as usize];
+                let v = f * full;
+                let dd: [f64; 3] = std::array::from_fn(|a| if a < D { o[a] - x[a] } else { 0.0 });
+                let m1o: [f64; 3] = std::array::from_fn(|a| v * (cen[a] - o[a]));
+                let k = i as usize;
+                for a in 0..D {
+                    first_moments[k][a] += v * (cen[a] - x[a]);
+                    for b in 0..D {
+                        second_moments[k][a][b] +=
+                            m2[a][b] * full + m1o[a] * dd[b] + dd[a] * m1o[b] + v * dd[a] * dd[b];
+                    }
+                }
                 volumes[i as usize] += f * full;
                 for a in 0..D {
                     areas[i as usize][a] += area[a];
@@ -366,6 +414,16 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
             normals,
             areas: area,
             depths,
+            moments: first_moments
+                .iter()
+                .zip(&second_moments)
+                .map(|(m1, m2)| {
+                    (
+                        Vect::<D>::from_fn(|a, _| m1[a]),
+                        crate::physics::Mat::<D>::from_fn(|a, b| m2[a][b]),
+                    )
+                })
+                .collect(),
         }),
         lost_volume: lost,
     })

@@ -9,7 +9,7 @@ use super::{BodyInit, GroupInit, InitialVelocity, MirrorFace, SimError, World};
 use crate::physics::bonds::{lattice_number_density, max_lattice_neighbours, Bonds};
 use crate::physics::boundary::{BoundaryGroup, GravityLaw, GroupMotion, LoadRegion};
 use crate::physics::contact::Contact;
-use crate::physics::dim::{Dim, Space, Vect};
+use crate::physics::dim::{Dim, Mat, Space, Vect};
 use crate::physics::elastic::{ElasticOperator, ElasticScratch};
 use crate::physics::ghosts::LUMP;
 use crate::physics::params::{ElasticModel, Material, MaterialLaw, SolverOptions};
@@ -128,14 +128,16 @@ where
                     || s.normals.len() != n
                     || s.areas.len() != n
                     || s.depths.len() != n
+                    || s.moments.len() != n
                 {
                     return Err(SimError::Invalid(format!(
-                        "body '{}' (bodies[{b}]) has {n} points but {} volumes, {} normals, {} areas and {} depths",
+                        "body '{}' (bodies[{b}]) has {n} points but {} volumes, {} normals, {} areas, {} depths and {} moments",
                         body.name,
                         s.volumes.len(),
                         s.normals.len(),
                         s.areas.len(),
-                        s.depths.len()
+                        s.depths.len(),
+                        s.moments.len()
                     )));
                 }
                 if let Some(v) = s.volumes.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
@@ -386,6 +388,10 @@ where
         if bodies.iter().any(|b| b.shape.is_some()) {
             surface = vec![(Vect::<D>::zeros(), 0.0); n];
             contact_radius = vec![0.5 * l0; n];
+            // Cell moments per unit volume: a whole cell's (0, l0^2 / 12 I) unless filled from
+            // a solid.
+            op.cell_moments =
+                vec![(Vect::<D>::zeros(), Mat::<D>::identity() * (l0 * l0 / 12.0)); n];
             let mut at = 0usize;
             for body in &bodies {
                 if let Some(s) = &body.shape {
@@ -395,6 +401,8 @@ where
                         surface[at + k] = (s.normals[k], s.areas[k]);
                         contact_radius[at + k] =
                             s.depths[k].min(crate::physics::contact::max_radius(l0, re));
+                        let (m1, m2) = &s.moments[k];
+                        op.cell_moments[at + k] = (m1 / s.volumes[k], m2 / s.volumes[k]);
                     }
                 }
                 at += body.points.len();

@@ -26,7 +26,7 @@ pub use state::WorldState;
 use super::bonds::Bonds;
 use super::boundary::{BoundaryGroup, GravityLaw, LoadRegion};
 use super::contact::Contact;
-use super::dim::{Dim, Space, Vect};
+use super::dim::{Dim, Mat, Space, Vect};
 use super::elastic::{ElasticOperator, ElasticScratch};
 pub use super::ghosts::Ghost;
 use super::params::{Material, SolverOptions};
@@ -213,6 +213,10 @@ pub struct ShapeFill<const D: usize> {
     /// largest ball about the centre inside the solid, which is what the particle stands for in
     /// contact (module `contact`).
     pub depths: Vec<f64>,
+    /// First and second moments of the particle's solid about its centre (m^(d+1), m^(d+2)):
+    /// what the second-order operator's cell energy integrates with (module `second_order`).
+    /// A whole cell: zero and l0^(d+2) / 12 on the diagonal.
+    pub moments: Vec<(Vect<D>, Mat<D>)>,
 }
 
 /// Initial velocity of the particles of a body. Particles of a boundary group start with zero

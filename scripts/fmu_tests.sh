@@ -13,10 +13,22 @@ echo "== python environment"
 scripts/setup_python.sh
 
 echo "== building the FMU binary (glibc 2.17, stripped)"
-lib="$(scripts/build-fmu-lib.sh | tail -n 1)"
+# FMU_LIB: a binary scripts/build-fmu-lib.sh has built already (scripts/test-all.sh).
+if [ -n "${FMU_LIB:-}" ]; then
+    lib="$FMU_LIB"
+else
+    lib="$(scripts/build-fmu-lib.sh | tail -n 1)"
+fi
 echo "$lib: $(stat -c %s "$lib") bytes"
 
 echo "== packing FMUs into $out"
+# The release `mps` binary: MPS_BIN (scripts/test-all.sh passes the one it built, so that no
+# cargo call waits for the build directory that its running Rust tests hold), else built here.
+mps="${MPS_BIN:-}"
+if [ -z "$mps" ]; then
+    cargo build --release --quiet --bin mps
+    mps="$root/target/release/mps"
+fi
 rm -rf "$out" && mkdir -p "$out"
 shopt -s nullglob
 scenes=(scenes/*.json)
@@ -25,11 +37,11 @@ if (( ${#scenes[@]} == 0 )); then
     exit 1
 fi
 # The paper's scenes: packed, and modelDescription/<name>.xml must be up to date.
-cargo run --release --quiet -- pack --lib "$lib" --out-dir "$out" \
+"$mps" pack --lib "$lib" --out-dir "$out" \
     --check-xml modelDescription "${scenes[@]}"
 # The small test scenes of the FMI layer (tests/data/clamped_cube.json is the Rust tests' slow
 # set-up, 8 s of closure, which pack would build once more for nothing).
-cargo run --release --quiet -- pack --lib "$lib" --out-dir "$out" tests/data/small*.json
+"$mps" pack --lib "$lib" --out-dir "$out" tests/data/small*.json
 
 echo "== example C host"
 fmu="$out/$(basename "${scenes[-1]}" .json).fmu"

@@ -1,16 +1,15 @@
 #!/usr/bin/env bash
 # Runs every test of the project on a fresh machine (Rust toolchain, gcc, Python 3.11 + pip):
 # Rust unit and integration tests (physics, scenes, paper cases, FMI C ABI via libloading, the
-# cbindgen header check, the C signature check), then the FMU tests (packing, modelDescription
+# cbindgen header check, the C signature check), the FMU tests (packing, modelDescription
 # staleness, the C host example, fmpy validation and simulation), which install their own
-# Python virtual environment, and last bounded fuzzing of the scene parser, FMU-state decoding
-# and FMI call sequences (scripts/fuzz.sh, nightly toolchain).
+# Python virtual environment, and bounded fuzzing of the scene parser, FMU-state decoding and
+# FMI call sequences (scripts/fuzz.sh, nightly toolchain).
 #
-# Three independent preparations run in the background while the Rust tests build and run
-# (their logs: target/prep-*.log): the Python environment (mostly downloads), then the
-# portable FMU binary (scripts/build-fmu-lib.sh) and the fuzz targets' build. They share the
-# cores with the Rust build; the idle gaps of the build's serial tail and of the tests' long
-# last tests are what they fill.
+# Two independent preparations run in the background while the Rust tests build (their logs:
+# target/prep-*.log): the Python environment (mostly downloads), then the portable FMU binary
+# (scripts/build-fmu-lib.sh); and the fuzz targets' build. They share the cores with the Rust
+# build and fill the idle gaps of its serial tail. Then the three test stages run side by side.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
@@ -21,50 +20,86 @@ echo "== cargo fmt --check"
 if cargo fmt --version >/dev/null 2>&1; then cargo fmt --all -- --check; else echo "rustfmt not installed: skipped"; fi
 
 echo "== background: Python environment, portable FMU binary, fuzz build (target/prep-*.log)"
+# Each job leaves its exit status in target/<job>.rc when it ends (stale ones removed first).
+rm -f target/prep-fmu.rc target/prep-fuzz.rc target/cargo-test.rc target/fmu-test.rc \
+    target/fuzz-test.rc
 (
     scripts/setup_python.sh >target/prep-python.log 2>&1 &&
         nice -n 5 scripts/build-fmu-lib.sh >target/prep-fmu-lib.log 2>&1
+    echo $? >target/prep-fmu.rc
 ) &
 prep_fmu=$!
-( nice -n 5 env FUZZ_BUILD_ONLY=1 scripts/fuzz.sh >target/prep-fuzz.log 2>&1 ) &
+(
+    nice -n 5 env FUZZ_BUILD_ONLY=1 scripts/fuzz.sh >target/prep-fuzz.log 2>&1
+    echo $? >target/prep-fuzz.rc
+) &
 prep_fuzz=$!
-# Neither outlives this script (an early failure kills them).
-trap 'kill $prep_fmu $prep_fuzz 2>/dev/null || true' EXIT
+# Waits until the job that writes target/$1.rc has ended.
+await() { while [ ! -f "target/$1.rc" ]; do sleep 1; done; }
+# No job outlives this script (an early failure or an interrupt kills them).
+trap 'kill $(jobs -p) 2>/dev/null || true' EXIT
 
-echo "== cargo build --release"
+echo "== cargo test --release --no-run (the library, the mps binary and every test in one build)"
+# One cargo invocation builds the release library (rlib and cdylib), the binary and the test
+# targets in one graph, so the test crates compile beside the library's serial tail.
+cargo test --release --no-run
 cargo build --release
 stamp
-# Every stage runs whatever the ones before it gave (a failed test does not hide the others);
-# each stage's exit status counts besides the summed test counts, so a build that fails before
-# any test runs is a failure too.
-echo "== cargo test --release"
-set +e
-cargo test --release --no-fail-fast -- --include-ignored 2>&1 | tee target/cargo-test.log
-rust_rc=${PIPESTATUS[0]}
-set -e
+# The three test stages run side by side: the Rust tests use both cores most of the time, the
+# FMU tests (one Python process) and bounded fuzzing (one libFuzzer process) fill what they
+# leave. Each writes its own log, printed whole when it ends. Every stage runs whatever the
+# others give (a failed test does not hide the others); each stage's exit status counts
+# besides the summed test counts, so a build that fails before any test runs is a failure too.
+echo "== Rust tests, FMU tests and fuzzing, side by side (target/cargo-test.log, fmu-test.log, fuzz-test.log)"
+(
+    cargo test --release --no-fail-fast -- --include-ignored >target/cargo-test.log 2>&1
+    echo $? >target/cargo-test.rc
+) &
+rust_job=$!
+(
+    # The FMU tests need the Python environment and the portable binary (background above).
+    await prep-fmu
+    if [ "$(cat target/prep-fmu.rc)" != 0 ]; then
+        {
+            echo "the Python environment or the portable FMU binary failed:"
+            tail -n 30 target/prep-python.log target/prep-fmu-lib.log
+            echo "FMU tests: 0 passed, 1 failed"
+        } >target/fmu-test.log 2>&1
+        echo 1 >target/fmu-test.rc
+    else
+        # The binaries built already: no cargo call here (cargo would wait for the build
+        # directory that the running Rust tests hold).
+        MPS_BIN="$PWD/target/release/mps" FMU_LIB="$(tail -n 1 target/prep-fmu-lib.log)" \
+            nice -n 5 scripts/fmu_tests.sh >target/fmu-test.log 2>&1
+        echo $? >target/fmu-test.rc
+    fi
+) &
+fmu_job=$!
+(
+    # cargo-fuzz targets (nightly), about 20 s each; fails on any crash. See scripts/fuzz.sh.
+    await prep-fuzz
+    {
+        cat target/prep-fuzz.log
+        nice -n 5 scripts/fuzz.sh
+    } >target/fuzz-test.log 2>&1
+    echo $? >target/fuzz-test.rc
+) &
+fuzz_job=$!
+wait $rust_job || true
+echo "== cargo test --release -- --include-ignored"
+cat target/cargo-test.log
 stamp
+wait $fmu_job || true
 echo "== FMU tests"
-if ! wait $prep_fmu; then
-    echo "the Python environment or the portable FMU binary failed:"
-    tail -n 30 target/prep-python.log target/prep-fmu-lib.log
-    echo "FMU tests: 0 passed, 1 failed" | tee target/fmu-test.log
-    fmu_rc=1
-else
-    set +e
-    scripts/fmu_tests.sh 2>&1 | tee target/fmu-test.log
-    fmu_rc=${PIPESTATUS[0]}
-    set -e
-fi
+cat target/fmu-test.log
 stamp
+wait $fuzz_job || true
 echo "== fuzz"
-# cargo-fuzz targets (nightly), about 20 s each; fails on any crash. See scripts/fuzz.sh.
-wait $prep_fuzz || true
-cat target/prep-fuzz.log
-set +e
-scripts/fuzz.sh 2>&1 | tee target/fuzz-test.log
-fuzz_rc=${PIPESTATUS[0]}
-set -e
+cat target/fuzz-test.log
 stamp
+rust_rc=$(cat target/cargo-test.rc 2>/dev/null || echo 1)
+fmu_rc=$(cat target/fmu-test.rc 2>/dev/null || echo 1)
+fuzz_rc=$(cat target/fuzz-test.rc 2>/dev/null || echo 1)
 passed=$(grep -hEo '[0-9]+ passed' target/cargo-test.log target/fmu-test.log target/fuzz-test.log | awk '{s+=$1} END {print s+0}')
 failed=$(grep -hEo '[0-9]+ failed' target/cargo-test.log target/fmu-test.log target/fuzz-test.log | awk '{s+=$1} END {print s+0}')
 echo "all: $passed passed, $failed failed"

@@ -80,7 +80,7 @@ pub enum ElasticModel {
     /// Quadratic-consistent gradients and Hessians, the strain energy integrated over each
     /// particle's cell to second order, and a stabilisation of the motion no quadratic field
     /// explains with the shear modulus as its stiffness: exact for every quadratic displacement
-    /// field (pure bending), no tuned factor. See src/physics/second_order.rs, docs/model.md.
+    /// field (pure bending), no tuned factor. See src/physics/second_order/, docs/model.md.
     /// The default: a scene that names no operator gets this one.
     #[default]
     SecondOrder,

@@ -1,0 +1,263 @@
+//! The force passes of the second-order operator (module `second_order`): pass 1 per particle
+//! over its own bonds (the fit, the conjugates of its cell energy and of its bonds' residuals,
+//! and dE/d du of each bond), pass 2 the gather of each particle's force, then the chain rule
+//! through mirror ghosts and clamp followers. Pass 1 works on the stencils' packed weights.
+use super::{basis_len, cell_term, law, Cells, SecondOrder, SecondOrderScratch, FOLLOW};
+use crate::par_iter_mut;
+use crate::physics::bonds::Bonds;
+use crate::physics::dim::{Dim, Mat, Space, Vect};
+#[allow(unused_imports)]
+use crate::physics::par::*;
+use crate::physics::params::MaterialLaw;
+use crate::physics::particles::Particles;
+
+/// Index of the symmetric pair (a, c) among the D (D + 1) / 2 quadratic terms, in the
+/// stencils' order (a <= c row by row: (0,0), (0,1), (0,2), (1,1), (1,2), (2,2) in 3D).
+#[inline(always)]
+const fn pair<const D: usize>(a: usize, c: usize) -> usize {
+    let (a, c) = if a <= c { (a, c) } else { (c, a) };
+    // The rows before a hold D + (D - 1) + ... + (D - a + 1) pairs.
+    a * D - a * (a.saturating_sub(1)) / 2 + (c - a)
+}
+
+impl<const D: usize> SecondOrder<D>
+where
+    Space: Dim<D>,
+{
+    /// Weights per bond in the stencils: D gradient and D (D + 1) / 2 Hessian values.
+    const NQ: usize = basis_len(D);
+
+    /// Internal forces of the current state (one energy, gather form), with the per-body Lame
+    /// constants and laws. `collapsed[i]` is set to 1 where the law has no energy at the
+    /// particle's state (a collapsed or inverted neo-Hookean particle: its stress is taken as
+    /// zero), to 0 elsewhere.
+    pub fn forces(
+        &self,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        c: &Cells<D>,
+        s: &mut SecondOrderScratch<D>,
+        collapsed: &mut [u8],
+        force: &mut [Vect<D>],
+    ) {
+        let n = p.len();
+        s.grad.resize(n, Mat::<D>::zeros());
+        let Cells {
+            lame,
+            laws,
+            vol,
+            moments,
+            retained,
+            volume,
+            l0,
+        } = *c;
+        let derived = !self.ghosts.is_empty() || !self.followers.is_empty();
+        if derived {
+            s.ueff.clear();
+            s.ueff.extend_from_slice(&p.u);
+            for g in &self.ghosts {
+                let (gi, mi) = (g.ghost as usize, g.master as usize);
+                s.ueff[gi] = g.reflect(&p.u[gi], &p.u[mi]);
+            }
+            for fl in &self.followers {
+                s.ueff[fl.particle as usize] = fl.follow(|j| p.u[j]);
+            }
+        }
+        let uu: &[Vect<D>] = if derived { &s.ueff } else { &p.u };
+        // Per-particle slices of the per-bond output (safe disjoint borrows for the gather).
+        s.dbond.resize(bonds.len(), Vect::<D>::zeros());
+        let mut slices: Vec<&mut [Vect<D>]> = Vec::with_capacity(n);
+        let mut rest: &mut [Vect<D>] = &mut s.dbond;
+        for i in 0..n {
+            let (head, tail) = rest.split_at_mut(bonds.of(i).len());
+            slices.push(head);
+            rest = tail;
+        }
+        // Pass 1, per particle i, three loops over its own bonds (their data stays in cache):
+        // H_i and G_i; the conjugates A = dE/dH_i and B = dE/dG_i from the cell energy and the
+        // residuals of i's bonds; then dE/d du_b = A g_b + sum_a B^(a) h_b[a] + rho_b per bond.
+        par_iter_mut!(s.grad)
+            .zip(par_iter_mut!(slices))
+            .zip(par_iter_mut!(collapsed))
+            .enumerate()
+            .for_each(|(i, ((gr, out), c_out))| {
+                let ui = uu[i];
+                let quad = self.quadratic[i];
+                let range = bonds.of(i);
+                // The fit in packed form (issue 25): m = [H | G] with G's symmetric pairs
+                // (a <= c, the stencils' order), each row k: m_k += du_k w_b over the bond's
+                // D + D (D + 1) / 2 stored weights. Element for element the same sums as
+                // `fit` (the energy queries fit again bit for bit).
+                let nq = Self::NQ;
+                let ws = self.stencils.of(i);
+                let mut m = [[0.0f64; 9]; D];
+                for (k, b) in range.clone().enumerate() {
+                    if self.weight(bonds, b) == 0.0 {
+                        continue;
+                    }
+                    let du = uu[bonds.nbr[b] as usize] - ui;
+                    // Kept in the bond's output slot for the residual loop (overwritten there).
+                    out[k] = du;
+                    let w = &ws[k * Self::NQ..k * Self::NQ + nq];
+                    for (r, row) in m.iter_mut().enumerate() {
+                        for (mj, wj) in row.iter_mut().zip(w) {
+                            *mj += du[r] * wj;
+                        }
+                    }
+                }
+                let h = Mat::<D>::from_fn(|r, c| m[r][c]);
+                let g: [Mat<D>; D] =
+                    std::array::from_fn(|a| Mat::<D>::from_fn(|r, c| m[r][D + pair::<D>(a, c)]));
+                *gr = h;
+                *c_out = 0;
+                if self.rigid[i] {
+                    out.iter_mut().for_each(|d| *d = Vect::<D>::zeros());
+                    return;
+                }
+                let body = p.body[i] as usize;
+                let (mu, lambda) = lame[body];
+                let law = laws[body];
+                let full = self.full[i];
+                let f = self.span[i] + h;
+                let e = Self::green(&h, &self.span[i], full);
+                let stress = match law.stress(&e, mu, lambda) {
+                    // An inverted particle (det F <= 0) of a full neighbourhood has the same C
+                    // as a mirrored one: only F sees it.
+                    Some(s)
+                        if law == MaterialLaw::SaintVenantKirchhoff
+                            || !full
+                            || law::det(&f) > 0.0 =>
+                    {
+                        s
+                    }
+                    _ => {
+                        *c_out = 1;
+                        Mat::<D>::zeros()
+                    }
+                };
+                // dW/dH = dW/dF = F S (first Piola-Kirchhoff), times the cell volume.
+                let mut a_i = f * stress * vol[i];
+                let mut b_i = [Mat::<D>::zeros(); D];
+                if quad && !self.closed.get(i).copied().unwrap_or(false) {
+                    cell_term::conjugates(
+                        &f,
+                        &g,
+                        &e,
+                        (mu, lambda),
+                        vol[i],
+                        moments.get(i),
+                        l0,
+                        &mut a_i,
+                        &mut b_i,
+                    );
+                }
+                // The conjugates packed as the weights: cj = [A | B] with B's symmetric pairs,
+                // B_(k,(a,c)) = B^(a)_kc + B^(c)_ka (a < c), B^(a)_ka (a = c), so that
+                // sum_a B^(a) h_b[a] = B w_b and dE/d du_b = cj w_b.
+                let mut cj = [[0.0f64; 9]; D];
+                for (r, row) in cj.iter_mut().enumerate() {
+                    for c in 0..D {
+                        row[c] = a_i[(r, c)];
+                    }
+                    if quad {
+                        for a in 0..D {
+                            for c in a..D {
+                                row[D + pair::<D>(a, c)] = if a == c {
+                                    b_i[a][(r, a)]
+                                } else {
+                                    b_i[a][(r, c)] + b_i[c][(r, a)]
+                                };
+                            }
+                        }
+                    }
+                }
+                let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
+                // The residual terms of each bond, evaluated once: their direct part goes to
+                // the bond's output, their conjugate also into cj. With the basis
+                // phi = (r0, r0_a r0_c / (1 + [a = c])) the residual is du - m phi and its
+                // conjugate rho enters cj as -rho phi^T (A -= rho r0^T, B^(a) -= rho r0^T
+                // r0_a / 2).
+                for (k, b) in range.clone().enumerate() {
+                    let w0 = self.weight(bonds, b);
+                    if w0 == 0.0 {
+                        out[k] = Vect::<D>::zeros();
+                        continue;
+                    }
+                    let r0 = bonds.r0[b];
+                    let du = out[k];
+                    let mut phi = [0.0f64; 9];
+                    for a in 0..D {
+                        phi[a] = r0[a];
+                        for c in a..D {
+                            phi[D + pair::<D>(a, c)] = if a == c {
+                                0.5 * r0[a] * r0[a]
+                            } else {
+                                r0[a] * r0[c]
+                            };
+                        }
+                    }
+                    let res = Vect::<D>::from_fn(|r, _| {
+                        let mut q = 0.0;
+                        for (mj, pj) in m[r][..nq].iter().zip(&phi[..nq]) {
+                            q += mj * pj;
+                        }
+                        du[r] - q
+                    });
+                    let (_, rho, direct) =
+                        Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
+                    for (r, row) in cj.iter_mut().enumerate() {
+                        for (cjj, pj) in row[..nq].iter_mut().zip(&phi[..nq]) {
+                            *cjj -= rho[r] * pj;
+                        }
+                    }
+                    out[k] = rho + direct;
+                }
+                for (k, b) in range.enumerate() {
+                    if self.weight(bonds, b) == 0.0 {
+                        continue;
+                    }
+                    let w = &ws[k * Self::NQ..k * Self::NQ + nq];
+                    out[k] += Vect::<D>::from_fn(|r, _| {
+                        let mut d = 0.0;
+                        for (cjj, wj) in cj[r][..nq].iter().zip(w) {
+                            d += cjj * wj;
+                        }
+                        d
+                    });
+                }
+                // The retained share scales the whole energy of the particle.
+                let share = retained[i];
+                if share != 1.0 {
+                    out.iter_mut().for_each(|d| *d *= share);
+                }
+            });
+        let dbond = &s.dbond;
+        // Pass 2: f_i = sum_j (dE/d du_ij - dE/d du_ji), du_ij = u_j - u_i.
+        par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
+            let mut acc = Vect::<D>::zeros();
+            for b in bonds.of(i) {
+                acc += dbond[b] - dbond[self.mirror[b] as usize];
+            }
+            *f_out = acc;
+        });
+        // Chain rule through u_g(u_m, u_group): the master gets parity . f_g; the ghost keeps
+        // what its group's motion is conjugate to, 2 f_g on the held (odd) axes, so that the
+        // group's reaction (minus the sum over its members) is the force across the face.
+        for g in &self.ghosts {
+            let (gi, mi) = (g.ghost as usize, g.master as usize);
+            let fg = force[gi];
+            force[mi] += fg.component_mul(&g.parity);
+            force[gi] =
+                Vect::<D>::from_fn(|k, _| if g.parity[k] < 0.0 { 2.0 * fg[k] } else { 0.0 });
+        }
+        // Chain rule through the followers' constraint: their forces go to the layers they
+        // follow and to the clamp (its reaction).
+        for fl in &self.followers {
+            let fi = force[fl.particle as usize];
+            force[fl.wall as usize] += fi * FOLLOW[0];
+            force[fl.inner[0] as usize] += fi * FOLLOW[1];
+            force[fl.inner[1] as usize] += fi * FOLLOW[2];
+            force[fl.particle as usize] = Vect::<D>::zeros();
+        }
+    }
+}

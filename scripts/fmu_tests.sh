@@ -3,7 +3,8 @@
 # packs scenes/*.json and tests/data/small*.json into target/fmu/*.fmu, checks
 # modelDescription/<scene>.xml against the generated XML, compiles and runs the example C host on
 # a packed FMU, and runs the fmpy tests (tests/python, including the binary's portability) in .venv.
-# Exits non-zero on any failure; the last line is pytest's summary.
+# Exits non-zero on any failure; the last line is pytest's summary. PYTEST_ARGS is passed to pytest
+# (e.g. PYTEST_ARGS=--durations=20 for the slowest tests).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -51,4 +52,4 @@ make -s -C examples/c_host run FMU="$fmu" STOP=0.02 STEP=0.001 | tee "$log"
 grep -q "^last successful time 0.02" "$log" || { echo "C host did not reach t = 0.02" >&2; exit 1; }
 
 echo "== fmpy tests"
-MPS_FMU_DIR="$out" .venv/bin/python -m pytest tests/python -q -p no:cacheprovider
+MPS_FMU_DIR="$out" .venv/bin/python -m pytest tests/python -q -p no:cacheprovider ${PYTEST_ARGS:-}

@@ -4,7 +4,9 @@
 //! keeps its plain fits. `cargo run --release -- study closure`; `-- cube N` reports a
 //! free cube of N^3 particles instead (the bulky body whose build is the slowest), with
 //! CLAMP=1 one face clamped by 3 wall layers behind it (no mirror field), with
-//! CORRECTED=1 the corrected operator's build for comparison.
+//! CORRECTED=1 the corrected operator's build for comparison; `-- family N` reports the bodies
+//! of issue 24's family (`studies::family`) at N particles across, `-- scene FILE` those of a
+//! scene file.
 use crate::physics::ElasticModel;
 use crate::scene::{Model, Scene};
 use crate::studies::bending::{cantilever3d_scene, plate2d_scene};
@@ -70,6 +72,31 @@ pub fn main(args: Vec<String>) {
             &cube_scene(n, clamped, model),
         );
         println!("build {:.1} s", t.elapsed().as_secs_f64());
+        return;
+    }
+    if args.first().map(String::as_str) == Some("scene") {
+        let path = args.get(1).expect("study closure scene FILE");
+        let s = Scene::load(std::path::Path::new(path)).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let t = std::time::Instant::now();
+        if s.dimension == 3 {
+            report::<3>(path, &s);
+        } else {
+            report::<2>(path, &s);
+        }
+        println!("  build {:.1} s", t.elapsed().as_secs_f64());
+        return;
+    }
+    if args.first().map(String::as_str) == Some("family") {
+        let n = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(4);
+        for case in crate::studies::family::family(n, true) {
+            let t = std::time::Instant::now();
+            if case.scene.dimension == 3 {
+                report::<3>(&case.name, &case.scene);
+            } else {
+                report::<2>(&case.name, &case.scene);
+            }
+            println!("  build {:.1} s", t.elapsed().as_secs_f64());
+        }
         return;
     }
     let so = ElasticModel::SecondOrder;

@@ -111,29 +111,17 @@ fn natural_clamp_is_exact_on_an_axial_bar_and_a_wrapping_clamp_warns() {
     }
     let (e, w) = tip_error(4, true);
     assert!(e.abs() > 1e-3, "wrapping clamp: tip error {e:e}");
-    let clamp = w
-        .iter()
-        .find(|m| m.starts_with("boundaries[1] ('sleeve')"))
-        .unwrap_or_else(|| panic!("no warning for the sleeve: {w:?}"));
-    for part in [
-        "held as a rigid block",
-        "too large",
-        "at 4 particles through 'beam'",
-        "to fix it",
-    ] {
-        assert!(clamp.contains(part), "{part:?} not in {clamp}");
-    }
-    for m in &w {
-        for jargon in [
-            "summation-by-parts",
-            "plain fits",
-            "rigid grip",
-            "docs/",
-            ".md",
-        ] {
-            assert!(!m.contains(jargon), "{jargon:?} in {m}");
-        }
-    }
+    warning_with(
+        &w,
+        "boundaries[1] ('sleeve')",
+        &[
+            "held as a rigid block",
+            "too large",
+            "at 4 particles through 'beam'",
+            "to fix it",
+        ],
+    );
+    no_jargon(&w);
 }
 
 /// Forces stay minus the gradient of the energy with a clamp found from the geometry on part of
@@ -237,4 +225,75 @@ fn followers_see_the_gravity_set_between_steps() {
         (tip_a - tip_b).abs() < 1e-12 * tip_b.abs().max(1e-12) + 1e-18,
         "gravity from t = 0.002 s: {tip_a} after 0.002 s of it; from t = 0: {tip_b}"
     );
+}
+
+/// A support written as a layer of particles on the body's face (the corrected operator's scene
+/// of the paper's case 2, run with the default operator) is named in its own warning with the
+/// measured effect and the remedy in the scene's terms. Before, the body's warning called it a
+/// body of several boxes and estimated 0.3 % where the beam is 1.47 % too flexible (linearised
+/// against the FEM; with mirror faces +0.14 %). The estimate at 9 across is the power law
+/// through the measurements at 9 and 18 across (1.47 / 0.459 % static, 0.82 / 0.28 % in f1).
+#[test]
+fn a_support_on_the_face_is_named_with_its_effect_and_remedy() {
+    use mps_solid::studies::family::case2_clamps;
+    let mut cases = case2_clamps();
+    let natural = cases.remove(0).scene;
+    let w: Vec<String> = Model::<3>::build(&natural)
+        .unwrap()
+        .warnings
+        .iter()
+        .map(|w| w.to_string())
+        .collect();
+    warning_with(
+        &w,
+        "scene warning in boundaries[1] ('support'): ",
+        &[
+            "a layer of particles on the face of body 'beam'",
+            "holding y, z",
+            "static deflection about 1.43 % too large",
+            "first frequency about 0.83 % too low at 9 particles through 'beam'",
+            "three layers of particles beyond the face",
+            "mirror",
+        ],
+    );
+    assert!(
+        w.iter().all(|m| !m.contains("not a single box")),
+        "the body is one box: {w:?}"
+    );
+    no_jargon(&w);
+    // The builder's scene (mirror faces at both ends) has no such warning.
+    let mirrored = cases.remove(0).scene;
+    let w = Model::<3>::build(&mirrored).unwrap().warnings;
+    assert!(
+        w.iter()
+            .all(|m| !m.to_string().contains("layer of particles on the face")),
+        "{w:?}"
+    );
+}
+
+/// The warning of `warnings` that starts with `prefix`; it must contain every one of `parts`.
+fn warning_with<'a>(warnings: &'a [String], prefix: &str, parts: &[&str]) -> &'a str {
+    let found = warnings
+        .iter()
+        .find(|m| m.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no warning starting {prefix:?}: {warnings:?}"));
+    for part in parts {
+        assert!(found.contains(part), "{part:?} not in {found}");
+    }
+    found
+}
+
+/// A user's warnings speak the scene's language: no solver internals, no file of the sources.
+fn no_jargon(warnings: &[String]) {
+    for m in warnings {
+        for jargon in [
+            "summation-by-parts",
+            "plain fits",
+            "rigid grip",
+            "docs/",
+            ".md",
+        ] {
+            assert!(!m.contains(jargon), "{jargon:?} in {m}");
+        }
+    }
 }

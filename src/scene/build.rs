@@ -4,6 +4,7 @@ use super::fill::body_fill;
 use super::{axis_index, err, BodyVelocity, Region, Scene, SceneError, SceneWarning};
 use crate::physics::boundary::GravityLaw;
 use crate::physics::dim::to3;
+use crate::physics::world::faces::SupportFace;
 use crate::physics::world::{GroupInit, SetupObserver, SetupStage, Unobserved};
 use crate::physics::SimError;
 use crate::physics::{BodyInit, Dim, InitialVelocity, Space, Vect, World};
@@ -137,6 +138,20 @@ where
             ),
         });
     }
+    for (g, r) in &world.support_faces {
+        let SupportFace::Shallow(face, layers, needed) = r else {
+            continue;
+        };
+        let b = &scene.boundaries[*g];
+        let axes = b.axes.as_deref().unwrap_or_default().join(", ");
+        out.push(SceneWarning {
+            field: format!("boundaries[{g}] ('{}')", b.name.escape_debug()),
+            message: format!(
+                "support '{}' holds {axes} on {layers} layer(s) of particles beyond the face of body '{}' at {face}, fewer than the {needed} the default operator needs there to support the body on that face; with fewer it holds them as part of the body, which then bends too easily (measured on a plate 4 particles thick resting on such a support at its end: one layer, first frequency 2.3 % too low and deflection 4.2 % too large); to fix it, let the region hold {needed} layers beyond the face (the body's boxes reaching {needed} particle spacings beyond it)",
+                b.name, b.body
+            ),
+        });
+    }
     for (k, r) in world.closure.iter().enumerate() {
         let Err(why) = r else { continue };
         // A body already warned of as under-resolved gets no second warning: its geometry is
@@ -152,6 +167,13 @@ where
         }
         let name = &scene.bodies[k].name;
         let n = through[k];
+        // A support too shallow to mirror the body has its own warning (above), whose remedy
+        // is this one's too.
+        if world.support_faces.iter().any(|(g, r)| {
+            matches!(r, SupportFace::Shallow(..)) && scene.boundaries[*g].body == *name
+        }) {
+            continue;
+        }
         if why.contains("one lattice") {
             let supports = face_layer_supports(scene, world, k);
             if !supports.is_empty() {
@@ -243,10 +265,9 @@ fn face_layer_warning(scene: &Scene, g: usize, n: usize) -> SceneWarning {
              bends too easily: its static deflection about {:.2} % too large and its first \
              frequency about {:.2} % too low at {n} particles through '{}' (measured on the \
              paper's clamped-pinned beam: 1.5 % and 0.8 % at 9 particles through it, 0.46 % and \
-             0.28 % at 18); to fix it, put three layers of particles beyond the face into the \
-             body's boxes instead of the layer on it, let the region hold them, and give the \
-             support a mirror (a point on the face and its outward normal): the same beam is \
-             then within 0.15 % at 9 particles through it",
+             0.28 % at 18); to fix it, put two or three layers of particles beyond the face into \
+             the body's boxes instead of the layer on it and let the region hold them: the same \
+             beam is then within 0.15 % at 9 particles through it",
             b.name,
             b.body,
             60.0 / (n as f64).powf(1.7),

@@ -167,9 +167,12 @@ pub struct Boundary {
     /// as its image's reflection, odd on the held axes and even on the free ones. A clamp so
     /// holds u = 0 on the face and a face support with the normal axis free holds the
     /// tangential displacement with no normal stress, both without the one-sided fits next to
-    /// the face (their O(l0) slip; docs/model.md, "Mirror faces"). Default: none, the group's
-    /// layers are a grip (a face layer on the face and walls behind it). Always serialised
-    /// (null when absent): FMU states are bincode, which cannot skip fields.
+    /// the face (their O(l0) slip; docs/model.md, "Mirror faces"). Default: none, and none is
+    /// needed where the face follows from the geometry: a clamp beside one face of its body
+    /// (walls behind it, the body's own end layers or a layer on the face), and a support whose
+    /// layers fill the lattice beyond one whole face of its body as deep as the stencil
+    /// reaches (2 layers at re = 2.1 dp). Any other group is held as it is written. Always
+    /// serialised (null when absent): FMU states are bincode, which cannot skip fields.
     #[serde(default)]
     pub mirror: Option<MirrorSpec>,
 }

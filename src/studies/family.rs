@@ -415,7 +415,8 @@ pub fn family(n: usize, three_d: bool) -> Vec<FamilyCase> {
 /// The paper's case 2 at its spacing (dp = 0.025, 9 across) with the default operator: the
 /// scene written as for the corrected operator (a face layer on the cell vertices and walls at
 /// the clamp, a face-layer support holding y and z at the other end), and as the builder
-/// writes it for second_order (both ends with `mirror`). Against reference/case2_fem.json
+/// writes it for second_order (both ends with `mirror`), and the latter without its `mirror`
+/// fields. Against reference/case2_fem.json
 /// (probe at x = 0.56 m, near the largest static deflection).
 pub fn case2_clamps() -> Vec<FamilyCase> {
     use crate::studies::cases::{case2_scene, Support};
@@ -430,6 +431,12 @@ pub fn case2_clamps() -> Vec<FamilyCase> {
     let mut natural = case2_scene(0.025, ElasticModel::Corrected, None, Support::Face);
     natural.solver.model = ElasticModel::SecondOrder;
     let mirror = case2_scene(0.025, ElasticModel::SecondOrder, None, Support::Face);
+    // The builder's layers (walls behind both end faces) without the mirror fields: what a
+    // user writes who puts the clamp and the support beyond the beam's ends.
+    let mut walls = mirror.clone();
+    for b in &mut walls.boundaries {
+        b.mirror = None;
+    }
     vec![
         FamilyCase {
             name: "case 2, dp 0.025, written for corrected (face layers, no mirror)".into(),
@@ -439,6 +446,11 @@ pub fn case2_clamps() -> Vec<FamilyCase> {
         FamilyCase {
             name: "case 2, dp 0.025, mirror fields (the builder's)".into(),
             scene: mirror,
+            reference,
+        },
+        FamilyCase {
+            name: "case 2, dp 0.025, walls behind both faces (no mirror)".into(),
+            scene: walls,
             reference,
         },
     ]

@@ -1,7 +1,9 @@
 //! Construction of a world: World::new (particles, bonds, groups and mirror faces, the
 //! operators and the summation-by-parts closure, the first measurement of the stable step)
 //! and the checks of its input.
-use super::faces::{check_mirror, group_faces, infer_clamp_followers};
+use super::faces::{
+    self, check_mirror, group_faces, infer_clamp_followers, infer_support_faces, Face, SupportFace,
+};
 use super::mirror::{clamp_followers, find_ghosts};
 use super::setup::{SetupClock, SetupObserver, SetupStage, StageCosts, Unobserved};
 use super::stable_step::{StableStepState, OMEGA_MARGIN};
@@ -314,6 +316,41 @@ where
                 })?;
             }
         }
+        let mut support_faces = Vec::new();
+        // Supports written without a mirror face (issue 24): the face from the geometry where
+        // the group's members are the images of the body's particles across it (module
+        // `faces`).
+        if options.model == ElasticModel::SecondOrder {
+            let eligible: Vec<bool> = gs
+                .iter()
+                .zip(&mirrored)
+                .map(|(g, m)| {
+                    let held = g.axes.iter().take(D).filter(|&&a| a).count();
+                    !m && held > 0 && held < D && !g.members.is_empty()
+                })
+                .collect();
+            for (g, r) in infer_support_faces(&p, &bonds, l0, &group_of, &eligible) {
+                match r {
+                    Ok((point, normal)) => {
+                        let c =
+                            |v: Vect<D>| std::array::from_fn(|k| if k < D { v[k] } else { 0.0 });
+                        let face = MirrorFace {
+                            point: c(point),
+                            normal: c(normal),
+                        };
+                        mirrors.push((g, face, gs[g].axes));
+                        support_faces.push((
+                            g,
+                            SupportFace::Mirror(faces::face_name(&Face {
+                                normal,
+                                offset: point.dot(&normal),
+                            })),
+                        ));
+                    }
+                    Err(why) => support_faces.push((g, why)),
+                }
+            }
+        }
         let ghosts = find_ghosts(&p, l0, &group_of, &mirrors, &names, options.model)?;
         let (ghosts, mut followers, mut walls) =
             clamp_followers(&p, l0, &group_of, &mirrors, ghosts);
@@ -526,6 +563,7 @@ where
             surface,
             closure,
             clamp_faces,
+            support_faces,
         };
         // The Rayleigh quotient of the power iteration approaches omega_max^2 from below: in 3D
         // 80 iterations leave it ~0.5 % short in omega, and the current configuration (large

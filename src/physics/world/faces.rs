@@ -360,3 +360,127 @@ pub fn check_mirror<const D: usize>(
     }
     Ok(())
 }
+
+/// Why a support was not read as a mirror face: its layers are too shallow for the stencil
+/// (`layers` deep behind the face, `needed` reached), or anything else (its meaning as
+/// material with the axes held is then the scene's, and no warning of its own is due).
+#[derive(Clone, Debug, PartialEq)]
+pub enum SupportFace {
+    /// Read as a mirror face (the face's name in the scene's words).
+    Mirror(String),
+    /// Layers beyond one face, fewer than the stencil reaches (the face's name, the layers,
+    /// the layers needed).
+    Shallow(String, usize, usize),
+    /// Not a support on one whole face (the reason).
+    NotAFace(String),
+}
+
+/// Mirror faces of the supports written without a `mirror` field (issue 24): a group holding
+/// some axes but not all (`eligible[g]`) whose members fill the lattice sites beyond one plane
+/// face of its body, as the images of the body's particles there, mirrors the body across
+/// that face, exactly as if the scene had given the face (`MirrorFace`): wall layers behind the
+/// face or the body's own end layers. Accepted only where that reading is the whole truth:
+/// the group touches its body on one lattice face; its members all lie beyond the face at the
+/// images of free particles of the body; every bond of a free particle that crosses the face
+/// ends on a member; every bond of a free particle into the body, reflected across the face,
+/// that ends beyond it ends on a member (the layers are as deep as the stencil reaches);
+/// every free particle of the first layer at the face has a member at its lattice neighbour
+/// across it (the group covers the whole face); and no free particle of the body lies beyond
+/// the face. Otherwise (a layer on the face, a support on part of a face, a group inside the
+/// body) the group keeps its meaning of material particles with those axes held. Returns per
+/// eligible group the face (point, unit normal) or why not.
+#[allow(clippy::type_complexity)]
+pub(super) fn infer_support_faces<const D: usize>(
+    p: &Particles<D>,
+    bonds: &Bonds<D>,
+    l0: f64,
+    group_of: &[u32],
+    eligible: &[bool],
+) -> Vec<(usize, Result<(Vect<D>, Vect<D>), SupportFace>)>
+where
+    Space: Dim<D>,
+{
+    let key =
+        |x: &Vect<D>| -> Vec<i64> { x.iter().map(|c| (c / l0 * 4.0).round() as i64).collect() };
+    let mut out = Vec::new();
+    for (g, _) in eligible.iter().enumerate().filter(|(_, e)| **e) {
+        let not = |why: &str| Err(SupportFace::NotAFace(why.into()));
+        let found = group_faces(p, bonds, l0, group_of, g as u32);
+        let [face] = found.faces[..] else {
+            out.push((g, not("it touches its body on no face or on several")));
+            continue;
+        };
+        let (e, offset) = (face.normal, face.offset);
+        let members: Vec<usize> = (0..p.len()).filter(|&i| group_of[i] == g as u32).collect();
+        let body = p.body[members[0]];
+        let free = |i: usize| group_of[i] == u32::MAX && p.body[i] == body;
+        let free_at: HashMap<Vec<i64>, usize> = (0..p.len())
+            .filter(|&i| free(i))
+            .map(|i| (key(&p.x0[i]), i))
+            .collect();
+        let members_at: HashMap<Vec<i64>, usize> =
+            members.iter().map(|&m| (key(&p.x0[m]), m)).collect();
+        let image_of_free = |x: &Vect<D>| {
+            let image = x - e * (2.0 * (x.dot(&e) - offset));
+            free_at
+                .get(&key(&image))
+                .is_some_and(|&m| (p.x0[m] - image).norm() < TOL * l0)
+        };
+        let member_at = |x: &Vect<D>| {
+            members_at
+                .get(&key(x))
+                .is_some_and(|&j| (p.x0[j] - x).norm() < TOL * l0)
+        };
+        // Layers beyond the face: of the group, and reached by the reflected stencils.
+        let layer = |x: &Vect<D>| ((x.dot(&e) - offset) / l0 + 0.5).round() as usize;
+        let layers = members.iter().map(|&m| layer(&p.x0[m])).max().unwrap_or(0);
+        let mut needed = 0usize;
+        let mut missing = false;
+        let mut why: Option<&str> = None;
+        if !members
+            .iter()
+            .all(|&m| p.body[m] == body && image_of_free(&p.x0[m]))
+        {
+            why = Some("its particles are not all at the images of the body's across the face");
+        }
+        for i in (0..p.len()).filter(|&i| free(i)) {
+            if why.is_some() {
+                break;
+            }
+            let depth = p.x0[i].dot(&e) - offset;
+            if depth > -TOL * l0 {
+                why = Some("the body has particles beyond the face");
+                break;
+            }
+            for b in bonds.of(i) {
+                let j = bonds.nbr[b] as usize;
+                let r = bonds.r0[b];
+                if p.x0[j].dot(&e) > offset {
+                    if group_of[j] != g as u32 {
+                        why = Some("another group's particles are beyond the face");
+                    }
+                } else if free(j) {
+                    let s = p.x0[i] + r - e * (2.0 * r.dot(&e));
+                    if s.dot(&e) > offset {
+                        needed = needed.max(layer(&s));
+                        missing |= !member_at(&s);
+                    }
+                }
+            }
+            if (depth + 0.5 * l0).abs() < TOL * l0
+                && bond_to(bonds, i, &(e * l0), l0).is_none_or(|j| group_of[j] != g as u32)
+            {
+                why = Some("it covers part of the face only");
+            }
+        }
+        out.push((
+            g,
+            match why {
+                Some(w) => not(w),
+                None if missing => Err(SupportFace::Shallow(face_name(&face), layers, needed)),
+                None => Ok((e * offset, e)),
+            },
+        ));
+    }
+    out
+}

@@ -323,6 +323,10 @@ where
     /// face from the geometry with followers (Ok), or why it keeps the rigid grip (module
     /// `faces`). Empty for the other operators.
     pub clamp_faces: Vec<(usize, Result<(), String>)>,
+    /// Second-order operator: per support without a mirror face (some axes held), the face it
+    /// mirrors the body across from the geometry, or why not (module `faces`). Empty for the
+    /// other operators.
+    pub support_faces: Vec<(usize, faces::SupportFace)>,
 }
 
 impl<const D: usize> World<D>

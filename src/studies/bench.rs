@@ -168,50 +168,9 @@ pub fn markdown(
 /// table, the instance's own thread pool) and directly through `Simulation`. Returns the wall
 /// times (s) of (FMU, direct).
 pub fn fmu_overhead() -> Result<(f64, f64), String> {
-    use crate::fmi::instance::{Instance, NoLogger};
-    use crate::fmi::variables::{Causality, VarType};
     let scene = case2_scene(0.025, ElasticModel::Corrected, None, Support::Face);
-    let dir = std::env::temp_dir().join(format!("mps-bench-fmu-{}", std::process::id()));
-    std::fs::create_dir_all(dir.join("resources")).map_err(|e| e.to_string())?;
-    std::fs::write(dir.join("resources/scene.json"), scene.to_json()).map_err(|e| e.to_string())?;
-    let uri = format!("file://{}", dir.join("resources").display());
-    let guid = crate::fmi::model_description::guid(&scene);
     let (h, n) = (1e-3, 600);
-    let fmu_time = {
-        let mut inst = Instance::instantiate(
-            "bench",
-            true,
-            &guid,
-            Some(&uri),
-            std::sync::Arc::new(NoLogger),
-            false,
-        )?;
-        let vrs: Vec<u32> = inst
-            .table()
-            .vars
-            .iter()
-            .filter(|v| {
-                v.causality == Causality::Output && v.ty == VarType::Real && v.name.contains(".u")
-            })
-            .map(|v| v.value_reference)
-            .collect();
-        let mut out = vec![0.0; vrs.len()];
-        inst.setup_experiment(0.0, Some(0.6))
-            .map_err(|e| e.message().to_string())?;
-        inst.enter_initialization_mode()
-            .map_err(|e| e.message().to_string())?;
-        inst.exit_initialization_mode()
-            .map_err(|e| e.message().to_string())?;
-        let start = Instant::now();
-        for k in 0..n {
-            inst.do_step(k as f64 * h, h)
-                .map_err(|e| e.message().to_string())?;
-            inst.get_real(&vrs, &mut out)
-                .map_err(|e| e.message().to_string())?;
-        }
-        start.elapsed().as_secs_f64()
-    };
-    let _ = std::fs::remove_dir_all(&dir);
+    let fmu_time = super::realtime::fmu_timing(&scene, n as f64 * h, h)?.stepping_s;
     let direct_time = {
         let mut sim = Simulation::new(&scene).map_err(|e| e.to_string())?;
         let mut sink = 0.0;

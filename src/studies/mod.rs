@@ -10,4 +10,5 @@ pub mod family;
 pub mod linear;
 pub mod peers;
 pub mod programs;
+pub mod realtime;
 pub mod report;

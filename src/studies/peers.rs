@@ -356,8 +356,13 @@ pub fn peers_markdown(rows: &[PeerRow], n: usize, dp: f64, dt: f64, steps: u64) 
 /// `doc` with its "## Peers" section (to the next "## " heading or the end) replaced by
 /// `section`, or `section` appended when it has none.
 pub fn replace_section(doc: &str, section: &str) -> String {
-    const HEAD: &str = "## Peers";
-    let Some(start) = doc.find(HEAD) else {
+    replace_section_named(doc, "## Peers", section)
+}
+
+/// `doc` with its section headed `head` (to the next "## " heading or the end) replaced by
+/// `section`, or `section` appended when it has none.
+pub fn replace_section_named(doc: &str, head: &str, section: &str) -> String {
+    let Some(start) = doc.find(head) else {
         let sep = if doc.is_empty() || doc.ends_with("\n\n") {
             ""
         } else if doc.ends_with('\n') {
@@ -367,10 +372,10 @@ pub fn replace_section(doc: &str, section: &str) -> String {
         };
         return format!("{doc}{sep}{section}");
     };
-    let rest = &doc[start + HEAD.len()..];
+    let rest = &doc[start + head.len()..];
     match rest.find("\n## ") {
         Some(k) => {
-            let next = start + HEAD.len() + k + 1;
+            let next = start + head.len() + k + 1;
             format!(
                 "{}{}\n\n{}",
                 &doc[..start],

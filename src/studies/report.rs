@@ -114,6 +114,8 @@ pub struct RunSummary {
     pub critical_dt: f64,
     pub wall_time_s: f64,
     pub pair_updates_per_s: f64,
+    /// Simulated time reached (s).
+    pub simulated_s: f64,
     pub error: Option<String>,
 }
 
@@ -127,6 +129,7 @@ impl From<&RunResult> for RunSummary {
             critical_dt: r.critical_dt,
             wall_time_s: r.wall_time_s,
             pair_updates_per_s: r.pair_updates_per_s,
+            simulated_s: r.end_time,
             error: r.error.clone(),
         }
     }
@@ -322,7 +325,7 @@ pub fn case2_text(r: &Case2Report) -> String {
 /// One line of run figures.
 pub fn summary_text(r: &RunSummary) -> String {
     format!(
-        "{} particles, {} bonds, {} steps of {:.3e} s (critical {:.3e} s), {:.2} s wall, {:.3e} pair-updates/s{}",
+        "{} particles, {} bonds, {} steps of {:.3e} s (critical {:.3e} s), {:.2} s wall, {:.3e} pair-updates/s, {:.1} s of wall time per simulated second{}",
         r.particles,
         r.bonds,
         r.steps,
@@ -330,6 +333,7 @@ pub fn summary_text(r: &RunSummary) -> String {
         r.critical_dt,
         r.wall_time_s,
         r.pair_updates_per_s,
+        r.wall_time_s / r.simulated_s,
         r.error.as_ref().map(|e| format!(", STOPPED: {e}")).unwrap_or_default()
     )
 }

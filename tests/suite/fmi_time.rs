@@ -199,3 +199,46 @@ fn a_do_step_of_minutes_warns_the_host_before_it_starts() {
     // The estimate it quotes: minutes (about 156 s at the cost figures of sim::STEP_COST).
     assert!(message.contains(" min of wall time"), "{message}");
 }
+
+/// The real-time figures' driver (`studies::realtime::fmu_timing`, `mps bench --realtime`)
+/// steps the instance in whole communication steps to the end it is given and reports the
+/// simulated time it reached: 0.013 s in steps of 1 ms is 13 steps, whose simulated time must
+/// be 0.013 s to round-off (a driver that lost or added a step would be 1 ms off), and its
+/// temporary resources are removed afterwards. A failing scene's error comes back as an error.
+#[test]
+fn fmu_timing_steps_the_instance_to_the_end() {
+    use mps_solid::studies::realtime::fmu_timing;
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::load(&root.join("tests/data/small2d.json")).unwrap();
+    let before: Vec<_> = temp_timing_dirs();
+    let t = fmu_timing(&scene, 0.013, 1e-3).unwrap();
+    assert!((t.simulated_s - 0.013).abs() < 1e-12, "{t:?}");
+    assert!(
+        t.setup_s > 0.0 && t.stepping_s > 0.0 && t.threads >= 1,
+        "{t:?}"
+    );
+    assert!(t.real_time_factor().is_finite(), "{t:?}");
+    assert_eq!(
+        temp_timing_dirs(),
+        before,
+        "the timing's resources are removed"
+    );
+    let mut bad = scene.clone();
+    bad.gravity.vector = vec![0.0, -1e30];
+    let err = fmu_timing(&bad, 0.013, 1e-3).unwrap_err();
+    assert!(!err.is_empty());
+    assert_eq!(temp_timing_dirs(), before, "removed after a failure too");
+}
+
+/// The real-time driver's temporary directories of this process.
+fn temp_timing_dirs() -> Vec<PathBuf> {
+    let prefix = format!("mps-fmu-timing-{}-", std::process::id());
+    let mut v: Vec<PathBuf> = std::fs::read_dir(std::env::temp_dir())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+        .map(|e| e.path())
+        .collect();
+    v.sort();
+    v
+}

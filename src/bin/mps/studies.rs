@@ -68,6 +68,12 @@ pub enum StudyCmd {
         /// and 2 threads. With --out, the table replaces the file's "## Peers" section.
         #[arg(long)]
         peers: bool,
+        /// Only the real-time figures: cases 1 and 2 and the slender 3D cantilever with the
+        /// default operator at the coarsest spacing within 1 % of the FEM, driven through the
+        /// FMI instance in 1 ms communication steps (wall time per simulated second). With
+        /// --out, the table replaces the file's "## Real time" section.
+        #[arg(long)]
+        realtime: bool,
         /// Particles along the cube's side for --peers.
         #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u64).range(4..=400))]
         peers_n: u64,
@@ -285,6 +291,7 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
             fine,
             family,
             peers,
+            realtime,
             peers_n,
             peers_steps,
             peers_rounds,
@@ -304,6 +311,24 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
                 if let Some(path) = out {
                     std::fs::write(&path, md)
                         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                }
+                return Ok(ExitCode::SUCCESS);
+            }
+            if realtime {
+                use mps_solid::studies::{peers, realtime};
+                let rows = realtime::real_time_rows()?;
+                let md = format!(
+                    "## Real time at 1 % error (issue 25)\n\n`mps bench --realtime`, default operator.\n\n{}",
+                    realtime::real_time_markdown(&rows)
+                );
+                println!("{md}");
+                if let Some(path) = out {
+                    let old = std::fs::read_to_string(&path).unwrap_or_default();
+                    std::fs::write(
+                        &path,
+                        peers::replace_section_named(&old, "## Real time", &md),
+                    )
+                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
                 }
                 return Ok(ExitCode::SUCCESS);
             }

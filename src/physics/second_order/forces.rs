@@ -76,161 +76,23 @@ where
         // Pass 1, per particle i, three loops over its own bonds (their data stays in cache):
         // H_i and G_i; the conjugates A = dE/dH_i and B = dE/dG_i from the cell energy and the
         // residuals of i's bonds; then dE/d du_b = A g_b + sum_a B^(a) h_b[a] + rho_b per bond.
+        let ctx = Pass1 {
+            p,
+            bonds,
+            uu,
+            lame,
+            laws,
+            vol,
+            moments,
+            retained,
+            volume,
+            l0,
+        };
         par_iter_mut!(s.grad)
             .zip(par_iter_mut!(slices))
             .zip(par_iter_mut!(collapsed))
             .enumerate()
-            .for_each(|(i, ((gr, out), c_out))| {
-                let ui = uu[i];
-                let quad = self.quadratic[i];
-                let range = bonds.of(i);
-                // The fit in packed form (issue 25): m = [H | G] with G's symmetric pairs
-                // (a <= c, the stencils' order), each row k: m_k += du_k w_b over the bond's
-                // D + D (D + 1) / 2 stored weights. Element for element the same sums as
-                // `fit` (the energy queries fit again bit for bit).
-                let nq = Self::NQ;
-                let ws = self.stencils.of(i);
-                let mut m = [[0.0f64; 9]; D];
-                for (k, b) in range.clone().enumerate() {
-                    if self.weight(bonds, b) == 0.0 {
-                        continue;
-                    }
-                    let du = uu[bonds.nbr[b] as usize] - ui;
-                    // Kept in the bond's output slot for the residual loop (overwritten there).
-                    out[k] = du;
-                    let w = &ws[k * Self::NQ..k * Self::NQ + nq];
-                    for (r, row) in m.iter_mut().enumerate() {
-                        for (mj, wj) in row.iter_mut().zip(w) {
-                            *mj += du[r] * wj;
-                        }
-                    }
-                }
-                let h = Mat::<D>::from_fn(|r, c| m[r][c]);
-                let g: [Mat<D>; D] =
-                    std::array::from_fn(|a| Mat::<D>::from_fn(|r, c| m[r][D + pair::<D>(a, c)]));
-                *gr = h;
-                *c_out = 0;
-                if self.rigid[i] {
-                    out.iter_mut().for_each(|d| *d = Vect::<D>::zeros());
-                    return;
-                }
-                let body = p.body[i] as usize;
-                let (mu, lambda) = lame[body];
-                let law = laws[body];
-                let full = self.full[i];
-                let f = self.span[i] + h;
-                let e = Self::green(&h, &self.span[i], full);
-                let stress = match law.stress(&e, mu, lambda) {
-                    // An inverted particle (det F <= 0) of a full neighbourhood has the same C
-                    // as a mirrored one: only F sees it.
-                    Some(s)
-                        if law == MaterialLaw::SaintVenantKirchhoff
-                            || !full
-                            || law::det(&f) > 0.0 =>
-                    {
-                        s
-                    }
-                    _ => {
-                        *c_out = 1;
-                        Mat::<D>::zeros()
-                    }
-                };
-                // dW/dH = dW/dF = F S (first Piola-Kirchhoff), times the cell volume.
-                let mut a_i = f * stress * vol[i];
-                let mut b_i = [Mat::<D>::zeros(); D];
-                if quad && !self.closed.get(i).copied().unwrap_or(false) {
-                    cell_term::conjugates(
-                        &f,
-                        &g,
-                        &e,
-                        (mu, lambda),
-                        vol[i],
-                        moments.get(i),
-                        l0,
-                        &mut a_i,
-                        &mut b_i,
-                    );
-                }
-                // The conjugates packed as the weights: cj = [A | B] with B's symmetric pairs,
-                // B_(k,(a,c)) = B^(a)_kc + B^(c)_ka (a < c), B^(a)_ka (a = c), so that
-                // sum_a B^(a) h_b[a] = B w_b and dE/d du_b = cj w_b.
-                let mut cj = [[0.0f64; 9]; D];
-                for (r, row) in cj.iter_mut().enumerate() {
-                    for c in 0..D {
-                        row[c] = a_i[(r, c)];
-                    }
-                    if quad {
-                        for a in 0..D {
-                            for c in a..D {
-                                row[D + pair::<D>(a, c)] = if a == c {
-                                    b_i[a][(r, a)]
-                                } else {
-                                    b_i[a][(r, c)] + b_i[c][(r, a)]
-                                };
-                            }
-                        }
-                    }
-                }
-                let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
-                // The residual terms of each bond, evaluated once: their direct part goes to
-                // the bond's output, their conjugate also into cj. With the basis
-                // phi = (r0, r0_a r0_c / (1 + [a = c])) the residual is du - m phi and its
-                // conjugate rho enters cj as -rho phi^T (A -= rho r0^T, B^(a) -= rho r0^T
-                // r0_a / 2).
-                for (k, b) in range.clone().enumerate() {
-                    let w0 = self.weight(bonds, b);
-                    if w0 == 0.0 {
-                        out[k] = Vect::<D>::zeros();
-                        continue;
-                    }
-                    let r0 = bonds.r0[b];
-                    let du = out[k];
-                    let mut phi = [0.0f64; 9];
-                    for a in 0..D {
-                        phi[a] = r0[a];
-                        for c in a..D {
-                            phi[D + pair::<D>(a, c)] = if a == c {
-                                0.5 * r0[a] * r0[a]
-                            } else {
-                                r0[a] * r0[c]
-                            };
-                        }
-                    }
-                    let res = Vect::<D>::from_fn(|r, _| {
-                        let mut q = 0.0;
-                        for (mj, pj) in m[r][..nq].iter().zip(&phi[..nq]) {
-                            q += mj * pj;
-                        }
-                        du[r] - q
-                    });
-                    let (_, rho, direct) =
-                        Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
-                    for (r, row) in cj.iter_mut().enumerate() {
-                        for (cjj, pj) in row[..nq].iter_mut().zip(&phi[..nq]) {
-                            *cjj -= rho[r] * pj;
-                        }
-                    }
-                    out[k] = rho + direct;
-                }
-                for (k, b) in range.enumerate() {
-                    if self.weight(bonds, b) == 0.0 {
-                        continue;
-                    }
-                    let w = &ws[k * Self::NQ..k * Self::NQ + nq];
-                    out[k] += Vect::<D>::from_fn(|r, _| {
-                        let mut d = 0.0;
-                        for (cjj, wj) in cj[r][..nq].iter().zip(w) {
-                            d += cjj * wj;
-                        }
-                        d
-                    });
-                }
-                // The retained share scales the whole energy of the particle.
-                let share = retained[i];
-                if share != 1.0 {
-                    out.iter_mut().for_each(|d| *d *= share);
-                }
-            });
+            .for_each(|(i, ((gr, out), c_out))| pass1_particle(self, &ctx, i, gr, out, c_out));
         let dbond = &s.dbond;
         // Pass 2: f_i = sum_j (dE/d du_ij - dE/d du_ji), du_ij = u_j - u_i.
         par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
@@ -259,5 +121,201 @@ where
             force[fl.inner[1] as usize] += fi * FOLLOW[2];
             force[fl.particle as usize] = Vect::<D>::zeros();
         }
+    }
+}
+
+/// What pass 1 reads besides the operator (the state and the cells' constants).
+struct Pass1<'a, const D: usize>
+where
+    Space: Dim<D>,
+{
+    p: &'a Particles<D>,
+    bonds: &'a Bonds<D>,
+    /// Displacements, ghosts and followers derived.
+    uu: &'a [Vect<D>],
+    lame: &'a [(f64, f64)],
+    laws: &'a [MaterialLaw],
+    vol: &'a [f64],
+    moments: &'a [(Vect<D>, Mat<D>)],
+    retained: &'a [f64],
+    volume: f64,
+    l0: f64,
+}
+
+/// Pass 1 of particle i: its fit, the conjugates of its cell energy and of its bonds'
+/// residuals, and dE/d du of each of its bonds into `out` (issue 25: compiled also for AVX2
+/// and chosen at run time where the CPU has it, about a third faster on the packed loops;
+/// without fused multiply-adds, so both versions give the same results bit for bit).
+#[multiversion::multiversion(
+    targets(
+        "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+        "x86_64+avx2+fma"
+    ),
+    dispatcher = "direct"
+)]
+fn pass1_particle<const D: usize>(
+    op: &SecondOrder<D>,
+    ctx: &Pass1<D>,
+    i: usize,
+    gr: &mut Mat<D>,
+    out: &mut [Vect<D>],
+    c_out: &mut u8,
+) where
+    Space: Dim<D>,
+{
+    let Pass1 {
+        p,
+        bonds,
+        uu,
+        lame,
+        laws,
+        vol,
+        moments,
+        retained,
+        volume,
+        l0,
+    } = *ctx;
+    let ui = uu[i];
+    let quad = op.quadratic[i];
+    let range = bonds.of(i);
+    // The fit in packed form (issue 25): m = [H | G] with G's symmetric pairs
+    // (a <= c, the stencils' order), each row k: m_k += du_k w_b over the bond's
+    // D + D (D + 1) / 2 stored weights. Element for element the same sums as
+    // `fit` (the energy queries fit again bit for bit).
+    let nq = SecondOrder::<D>::NQ;
+    let ws = op.stencils.of(i);
+    let mut m = [[0.0f64; 9]; D];
+    for (k, b) in range.clone().enumerate() {
+        if op.weight(bonds, b) == 0.0 {
+            continue;
+        }
+        let du = uu[bonds.nbr[b] as usize] - ui;
+        // Kept in the bond's output slot for the residual loop (overwritten there).
+        out[k] = du;
+        let w = &ws[k * SecondOrder::<D>::NQ..k * SecondOrder::<D>::NQ + nq];
+        for (r, row) in m.iter_mut().enumerate() {
+            for (mj, wj) in row.iter_mut().zip(w) {
+                *mj += du[r] * wj;
+            }
+        }
+    }
+    let h = Mat::<D>::from_fn(|r, c| m[r][c]);
+    let g: [Mat<D>; D] =
+        std::array::from_fn(|a| Mat::<D>::from_fn(|r, c| m[r][D + pair::<D>(a, c)]));
+    *gr = h;
+    *c_out = 0;
+    if op.rigid[i] {
+        out.iter_mut().for_each(|d| *d = Vect::<D>::zeros());
+        return;
+    }
+    let body = p.body[i] as usize;
+    let (mu, lambda) = lame[body];
+    let law = laws[body];
+    let full = op.full[i];
+    let f = op.span[i] + h;
+    let e = SecondOrder::<D>::green(&h, &op.span[i], full);
+    let stress = match law.stress(&e, mu, lambda) {
+        // An inverted particle (det F <= 0) of a full neighbourhood has the same C
+        // as a mirrored one: only F sees it.
+        Some(s) if law == MaterialLaw::SaintVenantKirchhoff || !full || law::det(&f) > 0.0 => s,
+        _ => {
+            *c_out = 1;
+            Mat::<D>::zeros()
+        }
+    };
+    // dW/dH = dW/dF = F S (first Piola-Kirchhoff), times the cell volume.
+    let mut a_i = f * stress * vol[i];
+    let mut b_i = [Mat::<D>::zeros(); D];
+    if quad && !op.closed.get(i).copied().unwrap_or(false) {
+        cell_term::conjugates(
+            &f,
+            &g,
+            &e,
+            (mu, lambda),
+            vol[i],
+            moments.get(i),
+            l0,
+            &mut a_i,
+            &mut b_i,
+        );
+    }
+    // The conjugates packed as the weights: cj = [A | B] with B's symmetric pairs,
+    // B_(k,(a,c)) = B^(a)_kc + B^(c)_ka (a < c), B^(a)_ka (a = c), so that
+    // sum_a B^(a) h_b[a] = B w_b and dE/d du_b = cj w_b.
+    let mut cj = [[0.0f64; 9]; D];
+    for (r, row) in cj.iter_mut().enumerate() {
+        for c in 0..D {
+            row[c] = a_i[(r, c)];
+        }
+        if quad {
+            for a in 0..D {
+                for c in a..D {
+                    row[D + pair::<D>(a, c)] = if a == c {
+                        b_i[a][(r, a)]
+                    } else {
+                        b_i[a][(r, c)] + b_i[c][(r, a)]
+                    };
+                }
+            }
+        }
+    }
+    let cres = volume * mu / op.n_ref[i].max(f64::MIN_POSITIVE);
+    // The residual terms of each bond, evaluated once: their direct part goes to
+    // the bond's output, their conjugate also into cj. With the basis
+    // phi = (r0, r0_a r0_c / (1 + [a = c])) the residual is du - m phi and its
+    // conjugate rho enters cj as -rho phi^T (A -= rho r0^T, B^(a) -= rho r0^T
+    // r0_a / 2).
+    for (k, b) in range.clone().enumerate() {
+        let w0 = op.weight(bonds, b);
+        if w0 == 0.0 {
+            out[k] = Vect::<D>::zeros();
+            continue;
+        }
+        let r0 = bonds.r0[b];
+        let du = out[k];
+        let mut phi = [0.0f64; 9];
+        for a in 0..D {
+            phi[a] = r0[a];
+            for c in a..D {
+                phi[D + pair::<D>(a, c)] = if a == c {
+                    0.5 * r0[a] * r0[a]
+                } else {
+                    r0[a] * r0[c]
+                };
+            }
+        }
+        let res = Vect::<D>::from_fn(|r, _| {
+            let mut q = 0.0;
+            for (mj, pj) in m[r][..nq].iter().zip(&phi[..nq]) {
+                q += mj * pj;
+            }
+            du[r] - q
+        });
+        let (_, rho, direct) =
+            SecondOrder::<D>::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
+        for (r, row) in cj.iter_mut().enumerate() {
+            for (cjj, pj) in row[..nq].iter_mut().zip(&phi[..nq]) {
+                *cjj -= rho[r] * pj;
+            }
+        }
+        out[k] = rho + direct;
+    }
+    for (k, b) in range.enumerate() {
+        if op.weight(bonds, b) == 0.0 {
+            continue;
+        }
+        let w = &ws[k * SecondOrder::<D>::NQ..k * SecondOrder::<D>::NQ + nq];
+        out[k] += Vect::<D>::from_fn(|r, _| {
+            let mut d = 0.0;
+            for (cjj, wj) in cj[r][..nq].iter().zip(w) {
+                d += cjj * wj;
+            }
+            d
+        });
+    }
+    // The retained share scales the whole energy of the particle.
+    let share = retained[i];
+    if share != 1.0 {
+        out.iter_mut().for_each(|d| *d *= share);
     }
 }

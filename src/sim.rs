@@ -336,9 +336,14 @@ impl Simulation {
     pub fn contact_searches(&self) -> u64 {
         with!(self, m => m.world.contact_searches())
     }
-    /// Fracture-check passes so far (0 when eps_max is infinite).
+    /// Fracture checks so far, one per step (0 when eps_max is infinite).
     pub fn fracture_checks(&self) -> u64 {
         with!(self, m => m.world.fracture_checks)
+    }
+    /// Fracture checks that tested every bond; the others were screened out (no bond's ends
+    /// had moved far enough since the last test to reach eps_max).
+    pub fn strain_tests(&self) -> u64 {
+        with!(self, m => m.world.strain_tests)
     }
     /// Number of surface particles, Eq. (41).
     pub fn surface_particles(&self) -> usize {

@@ -362,9 +362,9 @@ where
                         continue;
                     }
                     let r0 = bonds.r0[b];
-                    let l0 = r0.norm();
-                    let r = (r0 + (p.u[bonds.nbr[b] as usize] - ui)).norm();
-                    sum += w0 * (r - l0) / l0;
+                    // (|r| - l0) / l0 with one square root.
+                    let r2 = (r0 + (p.u[bonds.nbr[b] as usize] - ui)).norm_squared();
+                    sum += w0 * ((r2 / r0.norm_squared()).sqrt() - 1.0);
                 }
                 // A particle without bonds (n_i = 0 in the local model) has no volumetric
                 // strain: sum = 0, and 0 / 0 must not make its pressure NaN.
@@ -398,11 +398,10 @@ where
                     let r0 = bonds.r0[b];
                     let l02 = r0.norm_squared();
                     let rij = r0 + (p.u[j] - ui);
-                    let rot = <Space as Dim<D>>::midpoint(&qi, &p.q[j]);
-                    let u = rij - <Space as Dim<D>>::rotate(&rot, &r0);
+                    let u = rij - <Space as Dim<D>>::rotate_midpoint(&qi, &p.q[j], &r0);
                     let fs = u * (c * mu2 * w0 / l02);
-                    let rn = rij.norm();
-                    acc += fs + rij * (-c * 0.5 * (pr[i] + pr[j]) * w0 / (l02.sqrt() * rn));
+                    let rn = (l02 * rij.norm_squared()).sqrt();
+                    acc += fs + rij * (-c * 0.5 * (pr[i] + pr[j]) * w0 / rn);
                     mom = <Space as Dim<D>>::ang_add(
                         mom,
                         <Space as Dim<D>>::cross(&(rij * 0.5), &fs),
@@ -531,8 +530,8 @@ where
                         }
                         let j = bonds.nbr[b] as usize;
                         let r0 = bonds.r0[b];
-                        let rot = <Space as Dim<D>>::midpoint(&p.q[i], &p.q[j]);
-                        let u = (r0 + (p.u[j] - ui)) - <Space as Dim<D>>::rotate(&rot, &r0);
+                        let u = (r0 + (p.u[j] - ui))
+                            - <Space as Dim<D>>::rotate_midpoint(&p.q[i], &p.q[j], &r0);
                         total += 0.25 * c * 2.0 * mu * bonds.w0[b] / r0.norm_squared()
                             * u.norm_squared();
                     }

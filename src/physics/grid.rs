@@ -1,18 +1,18 @@
 //! A uniform cell grid over points: O(N) neighbour search within a radius (bond search in the
 //! reference configuration, contact search among surface particles).
 use super::dim::Vect;
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 /// Points binned into cubic cells of side `cell`; cells are hashed so unbounded domains work.
 pub struct CellGrid<const D: usize> {
     cell: f64,
-    cells: HashMap<[i64; D], Vec<u32>>,
+    cells: FxHashMap<[i64; D], Vec<u32>>,
 }
 
 impl<const D: usize> CellGrid<D> {
     /// Bins the points `pts[i]` for `i` in `ids` (all points when `ids` is None).
     pub fn build(pts: &[Vect<D>], ids: Option<&[u32]>, cell: f64) -> Self {
-        let mut cells: HashMap<[i64; D], Vec<u32>> = HashMap::new();
+        let mut cells: FxHashMap<[i64; D], Vec<u32>> = FxHashMap::default();
         let mut push = |i: u32| {
             cells
                 .entry(Self::key_of(&pts[i as usize], cell))

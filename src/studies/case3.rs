@@ -252,6 +252,9 @@ pub struct Case3Report {
     pub steps: u64,
     /// Contact pair-list builds (cell-grid searches).
     pub contact_searches: u64,
+    /// Fracture checks that tested every bond (the rest were screened out).
+    #[serde(default)]
+    pub strain_tests: u64,
     pub wall_time_s: f64,
     /// Time reached (s): end_time, or when the run failed.
     pub end_time: f64,
@@ -328,6 +331,7 @@ pub fn case3_report_with(
         critical_dt: sim.critical_dt(),
         steps: 0,
         contact_searches: 0,
+        strain_tests: 0,
         wall_time_s: 0.0,
         end_time: 0.0,
         first_contact: None,
@@ -391,6 +395,7 @@ pub fn case3_report_with(
     r.end_time = sim.time();
     r.steps = sim.steps();
     r.contact_searches = sim.contact_searches();
+    r.strain_tests = sim.strain_tests();
     r.final_broken_bonds = sim.broken_bonds();
     r.final_fragments = sim.fragments();
     r.final_large_fragments = events(&sim).large_block_fragments;
@@ -433,7 +438,7 @@ where
 pub fn case3_text(r: &Case3Report) -> String {
     let f = |t: Option<f64>| t.map_or("-".to_string(), |t| format!("{t:.3} s"));
     let mut s = format!(
-        "{} (fractured-surface contact {}): {} particles, {} steps of {:.3e} s (critical {:.3e} s) to t = {:.3} s in {:.1} s, {} contact searches\n",
+        "{} (fractured-surface contact {}): {} particles, {} steps of {:.3e} s (critical {:.3e} s) to t = {:.3} s in {:.1} s, {} contact searches, {} bond-strain tests\n",
         r.scene,
         if r.fractured_surfaces { "on" } else { "off" },
         r.particles,
@@ -442,7 +447,8 @@ pub fn case3_text(r: &Case3Report) -> String {
         r.critical_dt,
         r.end_time,
         r.wall_time_s,
-        r.contact_searches
+        r.contact_searches,
+        r.strain_tests
     );
     s += &format!(
         "  first contact            {:>10}   (paper 0.07 s)\n",

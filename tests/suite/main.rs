@@ -18,6 +18,7 @@ mod energy_fracture;
 mod fmi_model_description;
 mod fmi_time;
 mod fracture_bar;
+mod fracture_screen;
 mod header_fresh;
 mod initial_velocity;
 mod invariance;

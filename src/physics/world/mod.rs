@@ -281,8 +281,11 @@ where
     pub steps: u64,
     /// Surface particles and contact (section 2.5).
     pub contact: Contact<D>,
-    /// Fracture-check passes so far (0 when eps_max is infinite).
+    /// Fracture checks so far, one per step (0 when eps_max is infinite).
     pub fracture_checks: u64,
+    /// Checks that tested every bond (the others were screened out: no bond could have
+    /// reached eps_max since the last test, `fracture::StrainScreen`).
+    pub strain_tests: u64,
     /// Bond pairs broken so far, Eq. (42).
     pub broken_pairs: u64,
     /// Strain energy released by the breaks so far (J): at each break, what the particles
@@ -301,6 +304,7 @@ where
     /// Wall time spent checking and refreshing the stable step (s).
     pub step_refresh_seconds: f64,
     frac_flag: Vec<u8>,
+    strain_screen: crate::physics::fracture::StrainScreen<D>,
     scratch: ElasticScratch<D>,
     force: Vec<Vect<D>>,
     /// The gravity (m/s^2) and the followers' load shares (N, per follower) with which the

@@ -123,6 +123,8 @@ where
             })
             .collect();
         self.bonds.w0.clone_from(&s.w0);
+        // The screen's slack was of the bonds before (a restored bond may be near its limit).
+        self.strain_screen.invalidate();
         for &i in &changed {
             self.op.refresh_particle(&self.bonds, i, self.p.n_ref[i]);
         }

@@ -233,6 +233,51 @@ fn cases_runs_case_3_and_selects_cases() {
         "{s}"
     );
     assert!(s.contains("(paper 0.07 s)"), "{s}");
+    // The runs side by side (the default, one per thread) and one after the other (--jobs 1)
+    // give the same reports in the same order, but for their wall times: the results do not
+    // depend on the thread count.
+    let reports = |jobs: &str| -> Vec<Value> {
+        let out = Command::new(env!("CARGO_BIN_EXE_mps"))
+            .args([
+                "cases",
+                "--dp",
+                "0.05",
+                "--model",
+                "corrected",
+                "--case",
+                "1",
+            ])
+            .args(["--case", "3", "--case3-end", "0.02"])
+            .args(["--json", "--jobs", jobs])
+            .env("RAYON_NUM_THREADS", "2")
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let mut v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        fn strip(v: &mut Value) {
+            match v {
+                Value::Object(m) => {
+                    m.retain(|k, _| !k.contains("wall") && !k.contains("per_s"));
+                    m.values_mut().for_each(strip);
+                }
+                Value::Array(a) => a.iter_mut().for_each(strip),
+                _ => {}
+            }
+        }
+        strip(&mut v);
+        v.as_array().unwrap().clone()
+    };
+    let (side, one) = (reports("2"), reports("1"));
+    assert_eq!(
+        side.len(),
+        3,
+        "case 1 with corrected, case 3's two variants"
+    );
+    assert_eq!(side, one);
     let bad = Command::new(env!("CARGO_BIN_EXE_mps"))
         .args(["cases", "--case", "4"])
         .output()

@@ -2,6 +2,7 @@
 //! the benchmark and case 3 (src/bin/mps/studies.rs).
 use clap::{Parser, Subcommand, ValueEnum};
 #[cfg(feature = "studies")]
+mod cases;
 mod studies;
 use indicatif::{ProgressBar, ProgressStyle};
 use mps_solid::physics::ElasticModel;

@@ -1,12 +1,11 @@
 //! The study commands of the command line (cargo feature `studies`): the paper's cases against
 //! their references (`mps cases`, the main job), the benchmark, case 3 and its Figure 9, and the
 //! scene files of scenes/.
+use super::cases::{run_all, CaseRun, CaseSettings};
 use super::{progress, Model};
 use clap::Subcommand;
 use mps_solid::physics::ElasticModel;
 use mps_solid::scene::limits::num;
-use mps_solid::studies::cases::{case1_scene, case2_scene, Support};
-use mps_solid::studies::report;
 use mps_solid::Scene;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -30,12 +29,18 @@ pub enum StudyCmd {
         /// Fixed time step (s) instead of the automatic one (the paper uses 1e-5), all cases.
         #[arg(long)]
         dt: Option<f64>,
-        /// End time of case 3 (s); the paper's is 1.7 (both variants, about 50 s on 2 cores).
+        /// End time of case 3 (s); the paper's is 1.7 (both variants, side by side: about 27 s
+        /// on 2 cores).
         #[arg(long, default_value_t = 1.7)]
         case3_end: f64,
         /// Print JSON instead of tables.
         #[arg(long)]
         json: bool,
+        /// Runs at a time, each on its share of the threads (default: one per thread, which
+        /// finishes first; 1: one after the other on all threads, for each run's wall time on
+        /// all of them).
+        #[arg(long)]
+        jobs: Option<usize>,
     },
     /// Benchmark: run time against error for cases 1 and 2 (prints Markdown; see BENCHMARKS.md).
     Bench {
@@ -151,6 +156,7 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
             dt,
             case3_end,
             json,
+            jobs,
         } => {
             let cases: Vec<u8> = if case.is_empty() { vec![1, 2, 3] } else { case };
             if !(case3_end.is_finite() && case3_end > 0.0) {
@@ -178,102 +184,43 @@ pub fn run(cmd: StudyCmd) -> Result<ExitCode, String> {
                 .into_iter()
                 .filter(|(c, _)| cases.contains(c))
                 .collect();
+            let mut all: Vec<CaseRun> =
+                runs.into_iter().map(|(c, m)| CaseRun::Beam(c, m)).collect();
+            if cases.contains(&3) {
+                all.extend([CaseRun::Collision(true), CaseRun::Collision(false)]);
+            }
+            let jobs = jobs
+                .unwrap_or_else(rayon::current_num_threads)
+                .clamp(1, all.len().max(1));
+            let settings = CaseSettings { dp, dt, case3_end };
+            if !json && jobs > 1 {
+                println!(
+                    "{} runs, {jobs} at a time on {} thread(s) each: each run's wall time below is on its share (--jobs 1 runs them one after the other on all threads)\n",
+                    all.len(),
+                    (rayon::current_num_threads() / jobs).max(1)
+                );
+            }
             let mut out = Vec::new();
             let mut failed = false;
-            for (case, m) in runs {
-                let label = format!("case {case} {m:?}");
-                let (end, res) = match case {
-                    1 => {
-                        let pb = progress(case1_scene(dp, m, dt).end_time, &label);
-                        let r = report::case1(dp, m, dt, |t| pb.set_position((t * 1e6) as u64));
-                        pb.finish_and_clear();
-                        (
-                            r.as_ref().map(report::case1_text).map_err(|e| e.clone()),
-                            r.and_then(|r| serde_json::to_value(r).map_err(|e| e.to_string())),
-                        )
-                    }
-                    _ => {
-                        let pb = progress(case2_scene(dp, m, dt, Support::Face).end_time, &label);
-                        let r = report::case2(dp, m, dt, |t| pb.set_position((t * 1e6) as u64));
-                        pb.finish_and_clear();
-                        (
-                            r.as_ref().map(report::case2_text).map_err(|e| e.clone()),
-                            r.and_then(|r| serde_json::to_value(r).map_err(|e| e.to_string())),
-                        )
-                    }
-                };
-                match (end, res) {
-                    (Ok(text), Ok(v)) => {
-                        if v["run"]["error"].is_string() {
-                            failed = true;
-                        }
-                        if !json {
-                            println!("{text}");
-                        }
-                        out.push(v);
-                    }
-                    (Err(e), _) | (_, Err(e)) => {
-                        eprintln!("error: {label}: {e}");
-                        failed = true;
-                    }
-                }
-            }
-            if cases.contains(&3) {
-                // Both variants of the paper's Figure 9; the one without fractured-surface contact
-                // is expected to stop at an overlap (the paper's failure near 1.7 s): a report,
-                // not an error.
-                if !json {
-                    println!(
-                        "Case 3: cube hits block, dp = {} m, model Corrected, to {} s: the events of the paper's Figure 9 against its times",
-                        mps_solid::studies::case3::CASE3_DP,
-                        num(case3_end)
-                    );
-                }
-                for fc in [true, false] {
-                    let mut scene = mps_solid::studies::case3::case3_scene(
-                        mps_solid::studies::case3::CASE3_DP,
-                        fc,
-                        ElasticModel::Corrected,
-                    );
-                    scene.end_time = case3_end;
-                    if dt.is_some() {
-                        scene.solver.dt = dt;
-                    }
-                    let label = format!("case 3 {}", scene.name);
-                    let r = scene.validate().map_err(|e| e.to_string()).and_then(|()| {
-                        let pb = progress(case3_end, &label);
-                        let r = mps_solid::studies::case3::case3_report_with(
-                            &scene,
-                            case3_end,
-                            0.01,
-                            0.0025,
-                            |sim, kind| {
-                                if kind == mps_solid::studies::case3::CheckPoint::Regular {
-                                    pb.set_position((sim.time() * 1e6) as u64);
-                                }
-                            },
+            run_all(&all, settings, jobs, |k, r, bars| {
+                bars.suspend(|| {
+                    if !json
+                        && matches!(all[k], CaseRun::Collision(_))
+                        && (k == 0 || !matches!(all[k - 1], CaseRun::Collision(_)))
+                    {
+                        println!(
+                            "Case 3: cube hits block, dp = {} m, model Corrected, to {} s: the events of the paper's Figure 9 against its times",
+                            mps_solid::studies::case3::CASE3_DP,
+                            num(case3_end)
                         );
-                        pb.finish_and_clear();
-                        r
-                    });
-                    match r.and_then(|r| {
-                        serde_json::to_value(&r)
-                            .map(|v| (r, v))
-                            .map_err(|e| e.to_string())
-                    }) {
-                        Ok((r, v)) => {
-                            if !json {
-                                println!("{}", mps_solid::studies::case3::case3_text(&r));
-                            }
-                            out.push(v);
-                        }
-                        Err(e) => {
-                            eprintln!("error: {label}: {e}");
-                            failed = true;
-                        }
                     }
-                }
-            }
+                    if let (Some(text), false) = (&r.text, json) {
+                        println!("{text}");
+                    }
+                });
+                failed |= r.failed;
+                out.extend(r.value);
+            });
             if json {
                 println!("{}", serde_json::to_string_pretty(&out).unwrap());
             }

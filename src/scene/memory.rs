@@ -19,7 +19,7 @@ const BOND_BYTES: [u64; 2] = [32, 40];
 /// keeps per bond the conjugates of its force pass. Its peak is the first stable-step
 /// measurement (the power iteration's force pass beside the world) for a body larger than the
 /// closure's reduced box, the closure below otherwise. Measured after issue 25
-/// (tests/limits_memory.rs: `memory_by_setup_stage` per stage, `CALIBRATE=...` for the
+/// (`cargo bench --bench memory` per stage, tests/limits_memory.rs with `CALIBRATE=...` for the
 /// totals): 3D at re = 2.1 dp, stable step 2,642 B per particle at large sizes (30^3 and 40^3
 /// cubes) plus 6.6 MB, peaks of 2,796 and 2,746 B per particle at 35^3 and 40^3; 2D peaks of
 /// 757, 949-953 and 1,656 B per particle at re = 1.5, 2.1 and 3 dp (8, 12 and 28 bonds),

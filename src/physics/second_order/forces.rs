@@ -145,13 +145,18 @@ where
 /// Pass 1 of particle i: its fit, the conjugates of its cell energy and of its bonds'
 /// residuals, and dE/d du of each of its bonds into `out` (issue 25: compiled also for AVX2
 /// and chosen at run time where the CPU has it, about a third faster on the packed loops;
-/// without fused multiply-adds, so both versions give the same results bit for bit).
-#[multiversion::multiversion(
-    targets(
-        "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
-        "x86_64+avx2+fma"
-    ),
-    dispatcher = "direct"
+/// without fused multiply-adds, so both versions give the same results bit for bit). The fuzz
+/// targets (`cfg(fuzzing)`, set by cargo-fuzz) compile the baseline only: they test the logic,
+/// and the two more instrumented copies took 10 of the crate's 100 CPU-s in their build.
+#[cfg_attr(
+    not(fuzzing),
+    multiversion::multiversion(
+        targets(
+            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+            "x86_64+avx2+fma"
+        ),
+        dispatcher = "direct"
+    )
 )]
 fn pass1_particle<const D: usize>(
     op: &SecondOrder<D>,

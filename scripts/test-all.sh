@@ -57,7 +57,7 @@ echo "== Rust tests, FMU tests and fuzzing, side by side (target/cargo-test.log,
 # with two tests on two cores, a test's loops on two threads would only wait for each other
 # (the suite alone: 129 s wall and 32 s of system time on two threads per test, 102 s and 0.7 s
 # on one). The tests of thread-count independence and the memory measurements build their own
-# pools of 1-8 threads; the FMU instances keep their own worker threads (MPS_FMI_THREADS).
+# pools of 1-8 threads; the FMU instances keep their worker threads (MPS_FMI_THREADS unset).
 (
     RAYON_NUM_THREADS=1 cargo test --release --no-fail-fast -- --include-ignored \
         >target/cargo-test.log 2>&1
@@ -77,7 +77,11 @@ rust_job=$!
     else
         # The binaries built already: no cargo call here (cargo would wait for the build
         # directory that the running Rust tests hold).
-        MPS_BIN="$PWD/target/release/mps" FMU_LIB="$(tail -n 1 target/prep-fmu-lib.log)" \
+        # One worker thread per FMU instance, for the same reason as the Rust tests' one rayon
+        # thread (fmpy's tests alone: 164 CPU-s on two threads, 137 on one); the unload test
+        # and the Rust tests (fmi_host, unload) keep the instances' worker threads.
+        MPS_FMI_THREADS=1 MPS_BIN="$PWD/target/release/mps" \
+            FMU_LIB="$(tail -n 1 target/prep-fmu-lib.log)" \
             nice -n 5 scripts/fmu_tests.sh >target/fmu-test.log 2>&1
         echo $? >target/fmu-test.rc
     fi

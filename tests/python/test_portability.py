@@ -120,9 +120,12 @@ def test_library_unloads_after_every_simulate_fmu():
         print("mapped", len(copies), "copies")
         print("\\n".join(left))
     """)
+    # Two threads per instance whatever the test command sets (it runs the FMU tests on one):
+    # a worker thread that outlived its instance would keep the library mapped.
+    env = {**os.environ, "MPS_FMI_THREADS": "2"}
     with tempfile.TemporaryDirectory() as tmp:
         r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                           cwd=tmp, timeout=600)
+                           cwd=tmp, timeout=600, env=env)
     assert r.returncode == 0, r.stderr
     # fmpy's default logger prints the FMU's warnings (the default operator's closure note on
     # small2d) to stdout before the count.

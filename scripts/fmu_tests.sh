@@ -52,4 +52,9 @@ make -s -C examples/c_host run FMU="$fmu" STOP=0.02 STEP=0.001 | tee "$log"
 grep -q "^last successful time 0.02" "$log" || { echo "C host did not reach t = 0.02" >&2; exit 1; }
 
 echo "== fmpy tests"
-MPS_FMU_DIR="$out" .venv/bin/python -m pytest tests/python -q -p no:cacheprovider ${PYTEST_ARGS:-}
+# Two pytest-xdist workers, each test file on one of them (its module fixtures built once): the
+# files are single-threaded Python with FMUs on one or two threads, and test_fmu.py's two full
+# case 3 runs alone take about 47 s, so one process is a long single-threaded chain at the end of
+# scripts/test-all.sh. FMU_TEST_WORKERS=0 runs them in this process.
+MPS_FMU_DIR="$out" .venv/bin/python -m pytest tests/python -q -p no:cacheprovider \
+    -n "${FMU_TEST_WORKERS:-2}" --dist loadfile ${PYTEST_ARGS:-}

@@ -1,5 +1,5 @@
 //! Symplectic Euler, Eqs. (37)-(40), and the stable time step of the particle model, measured by
-//! power iteration on its own stiffness (springs, pressure and rotational degrees of freedom).
+//! the Lanczos process on its own stiffness (springs, pressure and rotational degrees of freedom).
 use super::dim::{Dim, Space, Vect};
 #[allow(unused_imports)]
 use super::par::*;

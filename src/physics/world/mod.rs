@@ -18,8 +18,8 @@ pub use build::MIN_SPACING_BITS;
 pub use mirror::MirrorFace;
 pub use setup::{SetupInterrupt, SetupObserver, SetupStage, Unobserved};
 pub use stable_step::{
-    StableStepState, OMEGA_MARGIN, REFRESH_CHECK_EVERY, REFRESH_DEFORMATION, REFRESH_ITERATIONS,
-    REFRESH_MIN_STEPS,
+    StableStepState, LANCZOS_ITERATIONS, OMEGA_MARGIN, REFRESH_CHECK_EVERY, REFRESH_DEFORMATION,
+    REFRESH_ITERATIONS, REFRESH_MIN_STEPS,
 };
 pub use state::WorldState;
 

@@ -21,7 +21,7 @@ pub enum SetupStage {
     OperatorFits,
     /// The second-order operator's summation-by-parts closure (module `sbp`).
     Closure,
-    /// The first measurement of the stable step (power iteration for omega_max).
+    /// The first measurement of the stable step (the Lanczos process for omega_max).
     StableStep,
     /// The forces of the initial state.
     InitialForces,

@@ -9,8 +9,9 @@ use super::ghosts::{Follower, Ghost};
 use super::second_order::{quantised, SecondOrder};
 use super::stencils::Stencils;
 
-/// Neighbourhood -> (set, quadratic, full, span) of the quadratic fits seen so far.
-type Seen<const D: usize> = HashMap<Vec<u64>, (u32, bool, bool, Mat<D>)>;
+/// Neighbourhood -> (set, geometry set, quadratic, full, span) of the quadratic fits seen so
+/// far.
+type Seen<const D: usize> = HashMap<Vec<u64>, (u32, u32, bool, bool, Mat<D>)>;
 
 impl<const D: usize> SecondOrder<D>
 where
@@ -35,32 +36,44 @@ where
         let mut s = Self::flags(bonds, l0, re_factor, n, rigid, ghosts, followers, walls);
         s.packed = true;
         s.stencils = Stencils::with_particles(n);
+        s.geometry = Stencils::with_particles(n);
+        let mut values = Vec::new();
         let mut seen: Seen<D> = Default::default();
         let mut key = Vec::new();
         for i in 0..n {
             key.clear();
             let cut = bonds.of(i).any(|b| bonds.w0[b] == 0.0);
             key.push(u64::from(cut));
+            // The set holds every bond's snapped vector and whether it is behind a clamp.
             for b in bonds.of(i) {
+                let behind = s.behind[bonds.nbr[b] as usize];
                 if s.weight(bonds, b) == 0.0 {
-                    key.push(u64::MAX);
-                    continue;
+                    key.push(u64::MAX - u64::from(behind));
                 }
                 key.extend(quantised(&bonds.r0[b], l0).iter().map(|c| c.to_bits()));
             }
-            if let Some(&(c, quad, full, span)) = seen.get(&key) {
+            if let Some(&(c, gc, quad, full, span)) = seen.get(&key) {
                 s.stencils.class[i] = c;
+                s.geometry.class[i] = gc;
                 s.quadratic[i] = quad;
                 s.full[i] = full;
                 s.span[i] = span;
                 continue;
             }
             s.refresh(bonds, l0, i);
+            s.pack_geometry(bonds, l0, i, &mut values);
+            s.geometry.set(i, &values);
             // The first-order fallback reads the unquantised reference vectors: not shared.
             if s.quadratic[i] {
                 seen.insert(
                     key.clone(),
-                    (s.stencils.class[i], true, s.full[i], s.span[i]),
+                    (
+                        s.stencils.class[i],
+                        s.geometry.class[i],
+                        true,
+                        s.full[i],
+                        s.span[i],
+                    ),
                 );
             }
         }

@@ -1,6 +1,7 @@
 //! Interned per-particle weight sets ("stencil classes") of the second-order operator (issue
 //! 25): the fit weights (g_b, h_b) of a particle, in its bond order, are stored once per
-//! distinct set, and each particle holds the index of its set. On a lattice every interior
+//! distinct set, and each particle holds the index of its set; so are the geometry of its bonds
+//! (snapped reference vectors, whether each enters the fits), in sets of their own. On a lattice every interior
 //! particle has the same neighbour pattern and so bitwise the same weights (translation
 //! invariance of the fit, with the reference vectors quantised): a body of N particles has a
 //! few hundred sets instead of N, the force loop reads its weights from the cache instead of
@@ -10,10 +11,50 @@ use std::collections::HashMap;
 
 use super::dim::{Dim, Mat, Space, Vect};
 
-/// Values per bond of a set: the gradient weight g (D values, 1/m), then the upper triangle of
-/// the symmetric Hessian weight h, row by row (D (D + 1) / 2 values, 1/m^2).
+/// Bonds per group of the force loop (one AVX2 register of doubles).
+pub const LANES: usize = 4;
+
+/// `nb` bonds rounded up to whole groups.
+pub const fn padded(nb: usize) -> usize {
+    nb.div_ceil(LANES) * LANES
+}
+
+/// Fit weights per bond: the gradient weight g (D values, 1/m), then the upper triangle of the
+/// symmetric Hessian weight h, row by row (D (D + 1) / 2 values, 1/m^2).
 pub const fn stride(d: usize) -> usize {
     d + d * (d + 1) / 2
+}
+
+/// Values per bond of a geometry set: the bond's reference vector as the fits see it (snapped
+/// to 1e-9 l0, D values, m), 1 / its length (1/m), and 1 if the bond enters the fits and
+/// residuals of its particle (0 for a bond to a wall particle behind a clamped face). Kept
+/// apart from the weights, which the closure and fracture make differ between particles of
+/// the same neighbourhood: a body has as many geometry sets as kinds of neighbourhood.
+pub const fn geometry_rows(d: usize) -> usize {
+    d + 2
+}
+
+/// Row of the reference vectors' first component in a geometry set.
+pub const R0_ROW: usize = 0;
+
+/// Row of 1 / |r0| in a geometry set.
+pub const fn inv_len_row(d: usize) -> usize {
+    d
+}
+
+/// Row of the fits' 0/1 flags in a geometry set.
+pub const fn keep_row(d: usize) -> usize {
+    d + 1
+}
+
+/// Sets store their values by group of [`LANES`] bonds and in a group by value (value j of bond
+/// k at `(k / LANES) * rows * LANES + j * LANES + k % LANES`, `rows` values per bond, the bond
+/// count padded to whole groups: zero weights, a unit reference vector along the first axis),
+/// so that the force loop reads each value of a group as one vector and a group's values in
+/// one stretch.
+#[inline(always)]
+pub const fn at(rows: usize, j: usize, k: usize) -> usize {
+    (k / LANES) * rows * LANES + j * LANES + k % LANES
 }
 
 /// The weight sets and the set of each particle.
@@ -23,7 +64,7 @@ pub struct Stencils<const D: usize> {
     pub class: Vec<u32>,
     /// Start of each set in `w` (in values); one more entry than sets.
     start: Vec<u32>,
-    /// The sets' values, `stride(D)` per bond.
+    /// The sets' values, `stride(D)` per bond, by value (see [`stride`]).
     w: Vec<f64>,
     /// Hash of a set's bits -> the sets with that hash.
     index: HashMap<u64, Vec<u32>>,
@@ -54,16 +95,42 @@ where
         }
     }
 
-    /// Packs the weights of one particle (in its bond order) into `out`.
+    /// Packs the fit weights of one particle (in its bond order) into `out` ([`at`], [`stride`]
+    /// rows).
     pub fn pack(g: &[Vect<D>], h: &[Mat<D>], out: &mut Vec<f64>) {
         out.clear();
-        for (g, h) in g.iter().zip(h) {
-            out.extend(g.iter());
+        out.resize(padded(g.len()) * stride(D), 0.0);
+        for (k, (g, h)) in g.iter().zip(h).enumerate() {
+            for a in 0..D {
+                out[at(stride(D), a, k)] = g[a];
+            }
+            let mut j = D;
             for a in 0..D {
                 for c in a..D {
-                    out.push(h[(a, c)]);
+                    out[at(stride(D), j, k)] = h[(a, c)];
+                    j += 1;
                 }
             }
+        }
+    }
+
+    /// Packs the geometry of one particle's bonds (in its bond order) into `out` ([`at`],
+    /// [`geometry_rows`]): the snapped reference vectors `r0` and the flags `keep`.
+    pub fn pack_geometry(r0: &[Vect<D>], keep: &[bool], out: &mut Vec<f64>) {
+        let rows = geometry_rows(D);
+        out.clear();
+        out.resize(padded(r0.len()) * rows, 0.0);
+        for k in 0..padded(r0.len()) {
+            let Some(r) = r0.get(k) else {
+                out[at(rows, R0_ROW, k)] = 1.0;
+                out[at(rows, inv_len_row(D), k)] = 1.0;
+                continue;
+            };
+            for a in 0..D {
+                out[at(rows, R0_ROW + a, k)] = r[a];
+            }
+            out[at(rows, inv_len_row(D), k)] = 1.0 / r.norm();
+            out[at(rows, keep_row(D), k)] = if keep[k] { 1.0 } else { 0.0 };
         }
     }
 
@@ -100,7 +167,7 @@ where
         &self.w[self.start[c as usize] as usize..self.start[c as usize + 1] as usize]
     }
 
-    /// The values of particle i's set (`stride(D)` per bond, in its bond order).
+    /// The values of particle i's set (by groups of bonds: [`at`]).
     #[inline(always)]
     pub fn of(&self, i: usize) -> &[f64] {
         self.values(self.class[i])
@@ -114,29 +181,36 @@ where
         }
     }
 
-    /// Gradient weight of bond k (in particle i's order) (1/m).
+    /// Gradient weight of bond k (in particle i's order) of a weight set (1/m).
     #[inline(always)]
     pub fn g(w: &[f64], k: usize) -> Vect<D> {
-        let s = stride(D);
-        let w = &w[k * s..k * s + D];
-        Vect::<D>::from_fn(|a, _| w[a])
+        Vect::<D>::from_fn(|a, _| w[at(stride(D), a, k)])
     }
 
-    /// Hessian weight of bond k (symmetric, 1/m^2).
+    /// Hessian weight of bond k of a weight set (symmetric, 1/m^2).
     #[inline(always)]
     pub fn h(w: &[f64], k: usize) -> Mat<D> {
-        let s = stride(D);
-        let w = &w[k * s + D..(k + 1) * s];
         let mut m = Mat::<D>::zeros();
-        let mut o = 0;
+        let mut o = D;
         for a in 0..D {
             for c in a..D {
-                m[(a, c)] = w[o];
-                m[(c, a)] = w[o];
+                m[(a, c)] = w[at(stride(D), o, k)];
+                m[(c, a)] = m[(a, c)];
                 o += 1;
             }
         }
         m
+    }
+
+    /// Reference vector of bond k of a geometry set as the fits see it (snapped, m) and 1 / its
+    /// length (1/m).
+    #[inline(always)]
+    pub fn r0(w: &[f64], k: usize) -> (Vect<D>, f64) {
+        let rows = geometry_rows(D);
+        (
+            Vect::<D>::from_fn(|a, _| w[at(rows, R0_ROW + a, k)]),
+            w[at(rows, inv_len_row(D), k)],
+        )
     }
 
     /// Number of distinct sets.
@@ -170,13 +244,13 @@ mod tests {
         let mut s = Stencils::<3>::with_particles(3);
         let mut buf = Vec::new();
         Stencils::<3>::pack(&g, &h, &mut buf);
-        assert_eq!(buf.len(), 2 * stride(3));
+        assert_eq!(buf.len(), LANES * stride(3));
         s.set(0, &buf);
         s.set(2, &buf);
         // -0.0 and 0.0 are different bits: a different set (the second bond's g_z is -0.0).
         let mut other = buf.clone();
-        assert_eq!(other[stride(3) + 2].to_bits(), (-0.0f64).to_bits());
-        other[stride(3) + 2] = 0.0;
+        assert_eq!(other[2 * LANES + 1].to_bits(), (-0.0f64).to_bits());
+        other[2 * LANES + 1] = 0.0;
         s.set(1, &other);
         assert_eq!(s.classes(), 2);
         assert_eq!(s.class, vec![0, 1, 0]);
@@ -185,5 +259,19 @@ mod tests {
             assert_eq!(Stencils::<3>::g(w, k), g[k]);
             assert_eq!(Stencils::<3>::h(w, k), h[k]);
         }
+        // The padding: no weight.
+        assert_eq!(Stencils::<3>::g(w, 2), Vect::<3>::zeros());
+        // A geometry set, its padding a unit vector along x, not in the fits.
+        let r0 = [
+            Vect::<3>::new(0.0, 3.0, 4.0),
+            Vect::<3>::new(-1.0, 0.0, 0.0),
+        ];
+        Stencils::<3>::pack_geometry(&r0, &[true, false], &mut buf);
+        assert_eq!(buf.len(), LANES * geometry_rows(3));
+        assert_eq!(Stencils::<3>::r0(&buf, 0), (r0[0], 0.2));
+        assert_eq!(Stencils::<3>::r0(&buf, 1), (r0[1], 1.0));
+        assert_eq!(Stencils::<3>::r0(&buf, LANES - 1), (Vect::<3>::x(), 1.0));
+        let keep = |k: usize| buf[at(geometry_rows(3), keep_row(3), k)];
+        assert_eq!((keep(0), keep(1), keep(2)), (1.0, 0.0, 0.0));
     }
 }

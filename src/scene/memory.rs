@@ -14,16 +14,19 @@ use crate::physics::ElasticModel;
 /// during a run (contact pair lists) and the allocator.
 const BASE_BYTES: [u64; 2] = [512, 960];
 const BOND_BYTES: [u64; 2] = [32, 40];
-/// The same for `second_order`, which stores per bond its mirror index and per particle its
-/// fits' flags, span and the index of its interned weight set (src/physics/stencils.rs), and
-/// keeps per bond the conjugates of its force pass. Its peak is the first stable-step
+/// The same for `second_order`, which stores per bond the position of its reverse bond's output
+/// and per particle its fits' flags, span and the indices of its interned weight and geometry
+/// sets (src/physics/stencils.rs), and keeps per bond the conjugates of its force pass (padded
+/// to whole groups of bonds: src/physics/second_order/lanes.rs). Its peak is the first stable-step
 /// measurement (the power iteration's force pass beside the world) for a body larger than the
 /// closure's reduced box, the closure below otherwise. Measured after issue 25
 /// (`cargo bench --bench memory` per stage, tests/limits_memory.rs with `CALIBRATE=...` for the
 /// totals): 3D at re = 2.1 dp, stable step 2,642 B per particle at large sizes (30^3 and 40^3
 /// cubes) plus 6.6 MB, peaks of 2,796 and 2,746 B per particle at 35^3 and 40^3; 2D peaks of
 /// 757, 949-953 and 1,656 B per particle at re = 1.5, 2.1 and 3 dp (8, 12 and 28 bonds),
-/// i.e. 49 B per bond. Fitted as an upper bound with about 5 % to spare. Before issue 25's
+/// i.e. 49 B per bond. Fitted as an upper bound with about 5 % to spare. With the force loop's
+/// groups of bonds (padding, the geometry sets), 2,894 B per particle at 35^3 (was 2,844) and
+/// 2D peaks of 790, 988 and 1,717 B per particle. Before issue 25's
 /// memory work: 3,783 B per particle in 3D at large sizes, 7,000-7,550 before the interning.
 const SECOND_ORDER_BASE_BYTES: [u64; 2] = [400, 800];
 const SECOND_ORDER_BOND_BYTES: [u64; 2] = [49, 66];

@@ -214,7 +214,7 @@ fn second_order_forces_are_the_energy_gradient() {
         if r0[1].abs() + r0[2].abs() > 1e-9 {
             let j = w.bonds.nbr[b] as usize;
             w.bonds.w0[b] = 0.0;
-            let bm = w.op.second.mirror[b] as usize;
+            let bm = mps_solid::physics::second_order::mirror_index(&w.bonds)[b] as usize;
             w.bonds.w0[bm] = 0.0;
             touched.push(j);
         }

@@ -71,7 +71,7 @@ fn a_particle_that_loses_bonds_gets_its_own_set_and_gets_its_built_set_back() {
     let state = w.state();
     let b = w.bonds.of(i).start;
     let j = w.bonds.nbr[b] as usize;
-    let back = w.op.second.mirror[b] as usize;
+    let back = mps_solid::physics::second_order::mirror_index(&w.bonds)[b] as usize;
     w.bonds.w0[b] = 0.0;
     w.bonds.w0[back] = 0.0;
     w.op.refresh_particle(&w.bonds, i, w.p.n_ref[i]);

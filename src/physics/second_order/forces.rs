@@ -2,7 +2,9 @@
 //! over its own bonds (the fit, the conjugates of its cell energy and of its bonds' residuals,
 //! and dE/d du of each bond), pass 2 the gather of each particle's force, then the chain rule
 //! through mirror ghosts and clamp followers. Pass 1 works on the stencils' packed weights.
-use super::{basis_len, cell_term, law, Cells, SecondOrder, SecondOrderScratch, FOLLOW};
+use super::{
+    basis_len, cell_term, lanes, law, pair, Cells, SecondOrder, SecondOrderScratch, FOLLOW,
+};
 use crate::par_iter_mut;
 use crate::physics::bonds::Bonds;
 use crate::physics::dim::{Dim, Mat, Space, Vect};
@@ -11,21 +13,12 @@ use crate::physics::par::*;
 use crate::physics::params::MaterialLaw;
 use crate::physics::particles::Particles;
 
-/// Index of the symmetric pair (a, c) among the D (D + 1) / 2 quadratic terms, in the
-/// stencils' order (a <= c row by row: (0,0), (0,1), (0,2), (1,1), (1,2), (2,2) in 3D).
-#[inline(always)]
-const fn pair<const D: usize>(a: usize, c: usize) -> usize {
-    let (a, c) = if a <= c { (a, c) } else { (c, a) };
-    // The rows before a hold D + (D - 1) + ... + (D - a + 1) pairs.
-    a * D - a * (a.saturating_sub(1)) / 2 + (c - a)
-}
-
 impl<const D: usize> SecondOrder<D>
 where
     Space: Dim<D>,
 {
     /// Weights per bond in the stencils: D gradient and D (D + 1) / 2 Hessian values.
-    const NQ: usize = basis_len(D);
+    pub(super) const NQ: usize = basis_len(D);
 
     /// Internal forces of the current state (one energy, gather form), with the per-body Lame
     /// constants and laws. `collapsed[i]` is set to 1 where the law has no energy at the
@@ -64,18 +57,21 @@ where
             }
         }
         let uu: &[Vect<D>] = if derived { &s.ueff } else { &p.u };
-        // Per-particle slices of the per-bond output (safe disjoint borrows for the gather).
-        s.dbond.resize(bonds.len(), Vect::<D>::zeros());
-        let mut slices: Vec<&mut [Vect<D>]> = Vec::with_capacity(n);
-        let mut rest: &mut [Vect<D>] = &mut s.dbond;
+        // Per-particle blocks of the per-bond output (safe disjoint borrows for the gather).
+        let total = *self.pad_start.last().unwrap_or(&0) as usize;
+        s.dbond.resize(total, 0.0);
+        let mut slices: Vec<&mut [f64]> = Vec::with_capacity(n);
+        let mut rest: &mut [f64] = &mut s.dbond;
         for i in 0..n {
-            let (head, tail) = rest.split_at_mut(bonds.of(i).len());
+            let len = (self.pad_start[i + 1] - self.pad_start[i]) as usize;
+            let (head, tail) = rest.split_at_mut(len);
             slices.push(head);
             rest = tail;
         }
-        // Pass 1, per particle i, three loops over its own bonds (their data stays in cache):
-        // H_i and G_i; the conjugates A = dE/dH_i and B = dE/dG_i from the cell energy and the
-        // residuals of i's bonds; then dE/d du_b = A g_b + sum_a B^(a) h_b[a] + rho_b per bond.
+        // Pass 1, per particle i over its own bonds (their data stays in cache; module
+        // `lanes`): H_i and G_i; the conjugates A = dE/dH_i and B = dE/dG_i from the cell energy
+        // and the residuals of i's bonds; then dE/d du_b = A g_b + sum_a B^(a) h_b[a] + rho_b per
+        // bond, and their sum.
         let ctx = Pass1 {
             p,
             bonds,
@@ -94,13 +90,16 @@ where
             .enumerate()
             .for_each(|(i, ((gr, out), c_out))| pass1_particle(self, &ctx, i, gr, out, c_out));
         let dbond = &s.dbond;
-        // Pass 2: f_i = sum_j (dE/d du_ij - dE/d du_ji), du_ij = u_j - u_i.
+        // Pass 2: f_i = sum_j (dE/d du_ij - dE/d du_ji), du_ij = u_j - u_i: the sum of the
+        // particle's block less the reverse bonds' values.
         par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
-            let mut acc = Vect::<D>::zeros();
-            for b in bonds.of(i) {
-                acc += dbond[b] - dbond[self.mirror[b] as usize];
+            let block = &dbond[self.pad_start[i] as usize..self.pad_start[i + 1] as usize];
+            let mut back = Vect::<D>::zeros();
+            for &at in &self.mirror_pos[bonds.of(i)] {
+                let at = at as usize;
+                back += Vect::<D>::from_fn(|a, _| dbond[at + a * lanes::LANES]);
             }
-            *f_out = acc;
+            *f_out = lanes::block_sum::<D>(block) - back;
         });
         // Chain rule through u_g(u_m, u_group): the master gets parity . f_g; the ghost keeps
         // what its group's motion is conjugate to, 2 f_g on the held (odd) axes, so that the
@@ -143,11 +142,12 @@ where
 }
 
 /// Pass 1 of particle i: its fit, the conjugates of its cell energy and of its bonds'
-/// residuals, and dE/d du of each of its bonds into `out` (issue 25: compiled also for AVX2
-/// and chosen at run time where the CPU has it, about a third faster on the packed loops;
-/// without fused multiply-adds, so both versions give the same results bit for bit). The fuzz
-/// targets (`cfg(fuzzing)`, set by cargo-fuzz) compile the baseline only: they test the logic,
-/// and the two more instrumented copies took 10 of the crate's 100 CPU-s in their build.
+/// residuals, and dE/d du of each of its bonds into `out` (its block of `dbond`) (issue 25: compiled also for AVX-512 and AVX2 and chosen at run time
+/// where the CPU has them; the bond loops of module `lanes` work on groups of bonds in vector
+/// registers with fused multiply-adds, exactly rounded, so every version gives the same results
+/// bit for bit). The fuzz targets (`cfg(fuzzing)`, set by cargo-fuzz) compile the baseline
+/// only: they test the logic, and the two more instrumented copies took 10 of the crate's 100
+/// CPU-s in their build.
 #[cfg_attr(
     not(fuzzing),
     multiversion::multiversion(
@@ -163,15 +163,36 @@ fn pass1_particle<const D: usize>(
     ctx: &Pass1<D>,
     i: usize,
     gr: &mut Mat<D>,
-    out: &mut [Vect<D>],
+    out: &mut [f64],
+    c_out: &mut u8,
+) where
+    Space: Dim<D>,
+{
+    let Pass1 { bonds, uu, .. } = *ctx;
+    lanes::with_groups(
+        op,
+        bonds,
+        i,
+        |k| uu[k],
+        |groups| pass1_groups(op, ctx, i, groups, gr, out, c_out),
+    );
+}
+
+/// Pass 1 of particle i on its bonds gathered in groups (module `lanes`).
+#[inline(always)]
+fn pass1_groups<const D: usize>(
+    op: &SecondOrder<D>,
+    ctx: &Pass1<D>,
+    i: usize,
+    groups: &[lanes::Group<D>],
+    gr: &mut Mat<D>,
+    out: &mut [f64],
     c_out: &mut u8,
 ) where
     Space: Dim<D>,
 {
     let Pass1 {
         p,
-        bonds,
-        uu,
         lame,
         laws,
         vol,
@@ -179,38 +200,19 @@ fn pass1_particle<const D: usize>(
         retained,
         volume,
         l0,
+        ..
     } = *ctx;
-    let ui = uu[i];
     let quad = op.quadratic[i];
-    let range = bonds.of(i);
-    // The fit in packed form (issue 25): m = [H | G] with G's symmetric pairs
-    // (a <= c, the stencils' order), each row k: m_k += du_k w_b over the bond's
-    // D + D (D + 1) / 2 stored weights. Element for element the same sums as
-    // `fit` (the energy queries fit again bit for bit).
-    let nq = SecondOrder::<D>::NQ;
-    let ws = op.stencils.of(i);
-    let mut m = [[0.0f64; 9]; D];
-    for (k, b) in range.clone().enumerate() {
-        if op.weight(bonds, b) == 0.0 {
-            continue;
-        }
-        let du = uu[bonds.nbr[b] as usize] - ui;
-        // Kept in the bond's output slot for the residual loop (overwritten there).
-        out[k] = du;
-        let w = &ws[k * SecondOrder::<D>::NQ..k * SecondOrder::<D>::NQ + nq];
-        for (r, row) in m.iter_mut().enumerate() {
-            for (mj, wj) in row.iter_mut().zip(w) {
-                *mj += du[r] * wj;
-            }
-        }
-    }
+    // The fit in packed form (issue 25): m = [H | G] with G's symmetric pairs (a <= c, the
+    // stencils' order), by groups of bonds (the energy fits the same way).
+    let m = lanes::fit(op, i, groups);
     let h = Mat::<D>::from_fn(|r, c| m[r][c]);
     let g: [Mat<D>; D] =
         std::array::from_fn(|a| Mat::<D>::from_fn(|r, c| m[r][D + pair::<D>(a, c)]));
     *gr = h;
     *c_out = 0;
     if op.rigid[i] {
-        out.iter_mut().for_each(|d| *d = Vect::<D>::zeros());
+        out.iter_mut().for_each(|d| *d = 0.0);
         return;
     }
     let body = p.body[i] as usize;
@@ -247,7 +249,7 @@ fn pass1_particle<const D: usize>(
     // The conjugates packed as the weights: cj = [A | B] with B's symmetric pairs,
     // B_(k,(a,c)) = B^(a)_kc + B^(c)_ka (a < c), B^(a)_ka (a = c), so that
     // sum_a B^(a) h_b[a] = B w_b and dE/d du_b = cj w_b.
-    let mut cj = [[0.0f64; 9]; D];
+    let mut cj: lanes::Packed<D> = [[0.0f64; 9]; D];
     for (r, row) in cj.iter_mut().enumerate() {
         for c in 0..D {
             row[c] = a_i[(r, c)];
@@ -265,62 +267,10 @@ fn pass1_particle<const D: usize>(
         }
     }
     let cres = volume * mu / op.n_ref[i].max(f64::MIN_POSITIVE);
-    // The residual terms of each bond, evaluated once: their direct part goes to
-    // the bond's output, their conjugate also into cj. With the basis
-    // phi = (r0, r0_a r0_c / (1 + [a = c])) the residual is du - m phi and its
-    // conjugate rho enters cj as -rho phi^T (A -= rho r0^T, B^(a) -= rho r0^T
-    // r0_a / 2).
-    for (k, b) in range.clone().enumerate() {
-        let w0 = op.weight(bonds, b);
-        if w0 == 0.0 {
-            out[k] = Vect::<D>::zeros();
-            continue;
-        }
-        let r0 = bonds.r0[b];
-        let du = out[k];
-        let mut phi = [0.0f64; 9];
-        for a in 0..D {
-            phi[a] = r0[a];
-            for c in a..D {
-                phi[D + pair::<D>(a, c)] = if a == c {
-                    0.5 * r0[a] * r0[a]
-                } else {
-                    r0[a] * r0[c]
-                };
-            }
-        }
-        let res = Vect::<D>::from_fn(|r, _| {
-            let mut q = 0.0;
-            for (mj, pj) in m[r][..nq].iter().zip(&phi[..nq]) {
-                q += mj * pj;
-            }
-            du[r] - q
-        });
-        let (_, rho, direct) =
-            SecondOrder::<D>::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared());
-        for (r, row) in cj.iter_mut().enumerate() {
-            for (cjj, pj) in row[..nq].iter_mut().zip(&phi[..nq]) {
-                *cjj -= rho[r] * pj;
-            }
-        }
-        out[k] = rho + direct;
-    }
-    for (k, b) in range.enumerate() {
-        if op.weight(bonds, b) == 0.0 {
-            continue;
-        }
-        let w = &ws[k * SecondOrder::<D>::NQ..k * SecondOrder::<D>::NQ + nq];
-        out[k] += Vect::<D>::from_fn(|r, _| {
-            let mut d = 0.0;
-            for (cjj, wj) in cj[r][..nq].iter().zip(w) {
-                d += cjj * wj;
-            }
-            d
-        });
-    }
-    // The retained share scales the whole energy of the particle.
-    let share = retained[i];
-    if share != 1.0 {
-        out.iter_mut().for_each(|d| *d *= share);
-    }
+    // The residual terms of each bond, evaluated once: their direct part goes to the bond's
+    // output, their conjugate also into cj. With the basis phi = (r0, r0_a r0_c / (1 + [a =
+    // c])) the residual is du - m phi and its conjugate rho enters cj as -rho phi^T (A -= rho
+    // r0^T, B^(a) -= rho r0^T r0_a / 2). Then dE/d du_b += cj w_b, all times the retained share
+    // (which scales the whole energy of the particle).
+    lanes::bond_forces(op, i, groups, &m, cres, cj, retained[i], out);
 }

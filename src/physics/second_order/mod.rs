@@ -44,9 +44,19 @@ use super::par::*;
 use super::params::MaterialLaw;
 use super::particles::Particles;
 use super::shape::{shape_pinv, shape_tensor};
-use super::stencils::Stencils;
+use super::stencils::{padded, Stencils, LANES};
 
 mod forces;
+mod lanes;
+
+/// Index of the symmetric pair (a, c) among the D (D + 1) / 2 quadratic terms, in the
+/// stencils' order (a <= c row by row: (0,0), (0,1), (0,2), (1,1), (1,2), (2,2) in 3D).
+#[inline(always)]
+const fn pair<const D: usize>(a: usize, c: usize) -> usize {
+    let (a, c) = if a <= c { (a, c) } else { (c, a) };
+    // The rows before a hold D + (D - 1) + ... + (D - a + 1) pairs.
+    a * D - a * (a.saturating_sub(1)) / 2 + (c - a)
+}
 
 /// Smallest ratio of the smallest to the largest singular value of the (scaled) moment matrix
 /// for which the quadratic fit is used; below it the particle falls back to the first-order
@@ -65,13 +75,21 @@ pub struct SecondOrder<const D: usize> {
     pub h: Vec<Mat<D>>,
     /// Packed form: the weights of each particle, interned by set (module `stencils`).
     pub stencils: Stencils<D>,
+    /// Packed form: the geometry of each particle's bonds (snapped reference vectors, 1 / their
+    /// lengths, whether each enters the fits), interned by set; fixed once built.
+    pub geometry: Stencils<D>,
     /// Packed form: each particle's set with all its bonds intact, as built (the closure
     /// included): what a particle whose bonds come back (a restored state) takes again.
     pub initial_class: Vec<u32>,
     /// Whether the weights are in `stencils` (else in `g` and `h`).
     pub packed: bool,
-    /// Index of the reverse bond j -> i of each bond i -> j.
-    pub mirror: Vec<u32>,
+    /// Start of each particle's block in the per-bond output of the force pass (`dbond`, in
+    /// values: its bonds padded to whole groups, D rows of `LANES` per group); one more entry
+    /// than particles.
+    pub pad_start: Vec<u32>,
+    /// Position in `dbond` of the reverse bond j -> i of each bond i -> j (its first
+    /// component; the others follow `LANES` apart).
+    pub mirror_pos: Vec<u32>,
     /// Whether particle i has the quadratic fit (else: first-order fallback, h = 0).
     pub quadratic: Vec<bool>,
     /// Reference number density n_i of the residual weights (sum of w0 over the original bonds).
@@ -122,8 +140,9 @@ pub struct SecondOrderScratch<const D: usize> {
     /// energy queries): [`SecondOrder::strain_energy`] fits them again from the same
     /// displacements, which gives them bit for bit.
     pub grad: Vec<Mat<D>>,
-    /// dE/d(u_j - u_i) of each directed bond (N).
-    pub dbond: Vec<Vect<D>>,
+    /// dE/d(u_j - u_i) of each directed bond (N), by particle in groups of `LANES` bonds, D rows
+    /// of `LANES` values per group (`SecondOrder::pad_start`).
+    pub dbond: Vec<f64>,
     /// Displacements with the ghosts of a mirror clamp reflected (empty without ghosts).
     pub ueff: Vec<Vect<D>>,
 }
@@ -194,9 +213,11 @@ where
             g: Vec::new(),
             h: Vec::new(),
             stencils: Stencils::default(),
+            geometry: Stencils::default(),
             initial_class: Vec::new(),
             packed: false,
-            mirror: mirror_index(bonds),
+            pad_start: Vec::new(),
+            mirror_pos: Vec::new(),
             quadratic: vec![false; n],
             span: vec![Mat::<D>::identity(); n],
             full: vec![true; n],
@@ -224,6 +245,7 @@ where
                 .map(|i| bonds.of(i).map(|b| bonds.w0[b]).sum())
                 .collect(),
         };
+        (s.pad_start, s.mirror_pos) = padded_layout(bonds, D);
         let near = 1.01 * l0;
         for i in 0..n {
             s.behind[i] = s.rigid[i]
@@ -346,6 +368,18 @@ where
         } else {
             bonds.w0[b]
         }
+    }
+
+    /// The geometry set of particle i's bonds (module `stencils`): their snapped reference
+    /// vectors and whether each enters the fits.
+    pub(crate) fn pack_geometry(&self, bonds: &Bonds<D>, l0: f64, i: usize, out: &mut Vec<f64>) {
+        let range = bonds.of(i);
+        let r0: Vec<Vect<D>> = range
+            .clone()
+            .map(|b| quantised(&bonds.r0[b], l0) * l0)
+            .collect();
+        let keep: Vec<bool> = range.map(|b| !self.behind[bonds.nbr[b] as usize]).collect();
+        Stencils::<D>::pack_geometry(&r0, &keep, out);
     }
 
     /// Recomputes the weights of particle i from its intact bonds (after fracture) and its span
@@ -525,6 +559,30 @@ pub fn mirror_index<const D: usize>(bonds: &Bonds<D>) -> Vec<u32> {
     m
 }
 
+/// The force pass's per-bond output layout (`SecondOrder::pad_start`, `mirror_pos`): each
+/// particle's bonds padded to whole groups of `LANES`, `d` rows of `LANES` values per group.
+fn padded_layout<const D: usize>(bonds: &Bonds<D>, d: usize) -> (Vec<u32>, Vec<u32>) {
+    let n = bonds.start.len() - 1;
+    let mut start = Vec::with_capacity(n + 1);
+    let mut at = 0usize;
+    start.push(0);
+    for i in 0..n {
+        at += padded(bonds.of(i).len()) * d;
+        start.push(u32::try_from(at).expect("fewer than 2^32 values of per-bond output"));
+    }
+    let mirror = mirror_index(bonds);
+    let mut pos = vec![0u32; bonds.len()];
+    for i in 0..n {
+        for b in bonds.of(i) {
+            let back = mirror[b] as usize;
+            let j = bonds.nbr[b] as usize;
+            let k = back - bonds.of(j).start;
+            pos[b] = start[j] + ((k / LANES) * LANES * d + k % LANES) as u32;
+        }
+    }
+    (start, pos)
+}
+
 impl<const D: usize> SecondOrder<D>
 where
     Space: Dim<D>,
@@ -538,26 +596,14 @@ where
         i: usize,
         uu: impl Fn(usize) -> Vect<D>,
     ) -> (Mat<D>, [Mat<D>; D]) {
-        let ui = uu(i);
-        let mut h = Mat::<D>::zeros();
-        let mut g = [Mat::<D>::zeros(); D];
-        let quad = self.quadratic[i];
         debug_assert!(self.packed, "the force loop reads the packed form");
-        let ws = self.stencils.of(i);
-        let first = bonds.of(i).start;
-        for b in bonds.of(i) {
-            if self.weight(bonds, b) == 0.0 {
-                continue;
-            }
-            let du = uu(bonds.nbr[b] as usize) - ui;
-            h += du * Stencils::<D>::g(ws, b - first).transpose();
-            if quad {
-                let hb = &Stencils::<D>::h(ws, b - first);
-                for (a, ga) in g.iter_mut().enumerate() {
-                    *ga += du * hb.row(a);
-                }
-            }
-        }
+        let m = lanes::with_groups(self, bonds, i, uu, |groups| lanes::fit(self, i, groups));
+        let h = Mat::<D>::from_fn(|r, c| m[r][c]);
+        let g: [Mat<D>; D] = if self.quadratic[i] {
+            std::array::from_fn(|a| Mat::<D>::from_fn(|r, c| m[r][D + pair::<D>(a, c)]))
+        } else {
+            [Mat::<D>::zeros(); D]
+        };
         (h, g)
     }
 
@@ -737,15 +783,17 @@ where
         }
         let cres = volume * mu / self.n_ref[i].max(f64::MIN_POSITIVE);
         let ui = uu(i);
-        for b in bonds.of(i) {
+        let geometry = self.geometry.of(i);
+        for (k, b) in bonds.of(i).enumerate() {
             let w0 = self.weight(bonds, b);
             if w0 == 0.0 {
                 continue;
             }
-            let r0 = bonds.r0[b];
+            // The reference vector as the fits see it, as in the force pass (module `lanes`).
+            let (r0, inv) = Stencils::<D>::r0(geometry, k);
             let du = uu(bonds.nbr[b] as usize) - ui;
             let res = Self::residual(&du, &r0, h, g);
-            total += Self::residual_terms(&res, &r0, &du, cres * w0 / r0.norm_squared()).0;
+            total += Self::residual_terms(&res, &r0, &du, cres * w0 * (inv * inv)).0;
         }
         total
     }

@@ -117,20 +117,22 @@ pub const PASS_COUNTS: &[(&str, &str, f64, f64)] = &[
     // du (3), H += du g^T (9 madd), G^(a) += du h_a^T (27 madd); weight check;
     // residual: G r0 r0 (27 madd + 3 mul), H r0 (9 madd), res (6); direction: r (3), |r| (5 + sqrt),
     // n (3 div); res.n (5), conj (6+1), direct (6+3); rho r0^T (9 mul), A -= (9), B^(a) -= (27 madd);
-    // bytes: nbr 4 + behind 1 + w0 8 + r0 24 + out 24 (write) = 61; the weights g and h (24 +
-    // 48 B per bond, read twice) come from the particle's interned set (physics::stencils: a
-    // few hundred sets per body, cache-resident); before the interning they were 96 B per bond
-    // from memory, read twice: 157 + 96 B.
+    // bytes: nbr 4 + w0 8 + out 24 (write) = 36. The weights g and h, the snapped r0, 1/|r0|
+    // and the bond's fit flag (14 values per bond) come from the particle's interned set
+    // (physics::stencils: a few hundred sets per body, cache-resident), by groups of bonds
+    // (second_order::lanes). Before the interning they were 96 B per bond from memory, read
+    // twice: 157 + 96 B; before the groups (issue 25) r0 and the flag were read per bond: 61 B.
     (
         "second_order",
         "1: fits, stress, residuals, dE/d du",
         3.0 + 18.0 + 54.0 + 54.0 + 3.0 + 18.0 + 6.0 + 3.0 + 6.0 + 3.0 + 5.0 + 7.0 + 9.0 + 9.0 + 9.0 + 54.0
             // out: A g (9 madd), B^(a) h_a (27 madd), add (3)
             + 18.0 + 54.0 + 3.0,
-        61.0,
+        36.0,
     ),
-    // f_i += dbond_b - dbond_mirror(b): 6; bytes: mirror 4 + dbond 24 + dbond (random) 24.
-    ("second_order", "2: gather", 6.0, 52.0),
+    // f_i = own_i - sum_b dbond_mirror(b) (own_i summed in pass 1): 3; bytes: mirror position
+    // 4 + dbond (random) 24.
+    ("second_order", "2: gather", 3.0, 28.0),
 ];
 
 pub fn main(args: Vec<String>) {

@@ -92,15 +92,9 @@ where
         let dbond = &s.dbond;
         // Pass 2: f_i = sum_j (dE/d du_ij - dE/d du_ji), du_ij = u_j - u_i: the sum of the
         // particle's block less the reverse bonds' values.
-        par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
-            let block = &dbond[self.pad_start[i] as usize..self.pad_start[i + 1] as usize];
-            let mut back = Vect::<D>::zeros();
-            for &at in &self.mirror_pos[bonds.of(i)] {
-                let at = at as usize;
-                back += Vect::<D>::from_fn(|a, _| dbond[at + a * lanes::LANES]);
-            }
-            *f_out = lanes::block_sum::<D>(block) - back;
-        });
+        par_iter_mut!(force)
+            .enumerate()
+            .for_each(|(i, f_out)| *f_out = pass2_particle(self, bonds, dbond, i));
         // Chain rule through u_g(u_m, u_group): the master gets parity . f_g; the ghost keeps
         // what its group's motion is conjugate to, 2 f_g on the held (odd) axes, so that the
         // group's reaction (minus the sum over its members) is the force across the face.
@@ -121,6 +115,36 @@ where
             force[fl.particle as usize] = Vect::<D>::zeros();
         }
     }
+}
+
+/// Pass 2 of particle i: the sum of its block of `dbond` less its reverse bonds' values (compiled
+/// also for AVX-512 and AVX2, as pass 1; the same bits in every version).
+#[cfg_attr(
+    not(fuzzing),
+    multiversion::multiversion(
+        targets(
+            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+            "x86_64+avx2+fma"
+        ),
+        dispatcher = "direct"
+    )
+)]
+fn pass2_particle<const D: usize>(
+    op: &SecondOrder<D>,
+    bonds: &Bonds<D>,
+    dbond: &[f64],
+    i: usize,
+) -> Vect<D>
+where
+    Space: Dim<D>,
+{
+    let block = &dbond[op.pad_start[i] as usize..op.pad_start[i + 1] as usize];
+    let mut back = Vect::<D>::zeros();
+    for &at in &op.mirror_pos[bonds.of(i)] {
+        let at = at as usize;
+        back += Vect::<D>::from_fn(|a, _| dbond[at + a * lanes::LANES]);
+    }
+    lanes::block_sum::<D>(block) - back
 }
 
 /// What pass 1 reads besides the operator (the state and the cells' constants).

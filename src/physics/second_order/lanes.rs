@@ -25,7 +25,9 @@ pub type Packed<const D: usize> = [[f64; 9]; D];
 
 /// The state of a group of a particle's bonds: du = u_j - u_i (m) and the bond's weight in the
 /// residuals (0 for a broken bond, a bond behind a clamp, and the lanes past the last bond).
+/// Aligned to a cache line, so that no lane straddles two.
 #[derive(Clone, Copy)]
+#[repr(C, align(64))]
 pub struct Group<const D: usize> {
     du: [Lane; D],
     w0: Lane,
@@ -140,15 +142,31 @@ where
     f(groups)
 }
 
+/// a b + c lane by lane, fused, written out lane by lane (the form the vectoriser takes as one
+/// vector operation whatever the loops around it).
+#[inline(always)]
+fn fma(a: &Lane, b: &Lane, c: &Lane) -> Lane {
+    const { assert!(LANES == 4) };
+    [
+        a[0].mul_add(b[0], c[0]),
+        a[1].mul_add(b[1], c[1]),
+        a[2].mul_add(b[2], c[2]),
+        a[3].mul_add(b[3], c[3]),
+    ]
+}
+
 /// One group's share of the fit: acc[r][j] += du[r] w[j] lane by lane.
 #[inline(always)]
-fn fit_group<const D: usize>(acc: &mut [[Lane; 9]; D], du: &[Lane; D], block: &[Lane]) {
-    for (j, w) in block.iter().enumerate() {
+fn fit_group<const D: usize>(acc: &mut [[Lane; 9]; D], du: &[Lane; D], block: &[Lane])
+where
+    Space: Dim<D>,
+{
+    // A constant trip count (not the block's length), so that the loop is unrolled and its
+    // lanes vectorised whatever the inlining around it.
+    for j in 0..SecondOrder::<D>::NQ {
+        let w = &block[j];
         for (row, du) in acc.iter_mut().zip(du) {
-            let a = &mut row[j];
-            for l in 0..LANES {
-                a[l] = du[l].mul_add(w[l], a[l]);
-            }
+            row[j] = fma(du, w, &row[j]);
         }
     }
 }
@@ -223,9 +241,7 @@ pub fn bond_forces<const D: usize>(
         let mut q = [[0.0f64; LANES]; D];
         for j in 0..nq {
             for (r, q) in q.iter_mut().enumerate() {
-                for l in 0..LANES {
-                    q[l] = m[r][j].mul_add(phi[j][l], q[l]);
-                }
+                *q = fma(&[m[r][j]; LANES], &phi[j], q);
             }
         }
         let mut res = *du;
@@ -275,9 +291,7 @@ pub fn bond_forces<const D: usize>(
         }
         for (r, row) in acc.iter_mut().enumerate() {
             for j in 0..nq {
-                for l in 0..LANES {
-                    row[j][l] = rho[r][l].mul_add(phi[j][l], row[j][l]);
-                }
+                row[j] = fma(&rho[r], &phi[j], &row[j]);
             }
         }
     }
@@ -307,13 +321,14 @@ fn conjugates_group<const D: usize>(
     block: &[Lane],
     w0: &Lane,
     share: f64,
-) {
+) where
+    Space: Dim<D>,
+{
     let mut d: [Lane; D] = std::array::from_fn(|r| o[r]);
-    for (j, w) in block.iter().enumerate() {
+    for j in 0..SecondOrder::<D>::NQ {
+        let w = &block[j];
         for (r, d) in d.iter_mut().enumerate() {
-            for l in 0..LANES {
-                d[l] = cj[r][j].mul_add(w[l], d[l]);
-            }
+            *d = fma(&[cj[r][j]; LANES], w, d);
         }
     }
     let scale: Lane = std::array::from_fn(|l| if w0[l] == 0.0 { 0.0 } else { share });

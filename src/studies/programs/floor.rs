@@ -6,6 +6,8 @@
 //!
 //! The binary is built for the baseline x86-64 instruction set (SSE2: 2 f64 or 4 f32 lanes, no
 //! FMA instruction), like the FMU's; the figures are what this build's loops can reach.
+use crate::physics::ElasticModel;
+use crate::studies::bench::single_thread_throughput;
 use rayon::prelude::*;
 use std::hint::black_box;
 use std::time::Instant;
@@ -33,15 +35,64 @@ macro_rules! madd_kernel {
 madd_kernel!(madd_f64, f64);
 madd_kernel!(madd_f32, f32);
 
+/// The f64 kernel with fused multiply-adds, compiled as the default operator's force passes are
+/// (AVX-512, AVX2 + FMA, baseline; the best this CPU has is chosen at run time). LLVM keeps its
+/// chains scalar (`vfmadd213sd`: the vectoriser does not pack independent chains of one
+/// operation), so it measures the FMA units' issue rate per lane; times the lanes of the widest
+/// vectors ([`vector_lanes`]) it is the peak of the passes' vector code.
+#[multiversion::multiversion(
+    targets(
+        "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+        "x86_64+avx2+fma"
+    ),
+    dispatcher = "direct"
+)]
+fn fma_f64(iters: u64, a: f64, b: f64) -> f64 {
+    let mut acc = [0.0f64; CHAINS];
+    for (k, x) in acc.iter_mut().enumerate() {
+        *x = k as f64 * 1e-3;
+    }
+    for _ in 0..iters {
+        for x in acc.iter_mut() {
+            *x = x.mul_add(a, b);
+        }
+    }
+    acc.iter().sum()
+}
+
+/// f64 lanes of the widest vectors the default operator's passes run with on this CPU.
+fn vector_lanes() -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            return 8.0;
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            return 4.0;
+        }
+    }
+    2.0
+}
+
+/// Which multiply-add kernel a rate measures.
+#[derive(Clone, Copy)]
+enum Kernel {
+    BaselineF64,
+    BaselineF32,
+    FmaF64,
+}
+
 /// Flops per second of the multiply-add kernel on `threads` threads at once.
-fn madd_rate(single: bool, threads: usize, seconds: f64) -> f64 {
+fn madd_rate(kernel: Kernel, threads: usize, seconds: f64) -> f64 {
     let run = |iters: u64| -> f64 {
         let t0 = Instant::now();
         let work = |_k: usize| {
-            if single {
-                black_box(madd_f32(iters, black_box(0.999_9), black_box(1e-4))) as f64
-            } else {
-                black_box(madd_f64(iters, black_box(0.999_9), black_box(1e-4)))
+            let (a, b) = (black_box(0.999_9), black_box(1e-4));
+            match kernel {
+                Kernel::BaselineF32 => black_box(madd_f32(iters, a as f32, b as f32)) as f64,
+                Kernel::BaselineF64 => black_box(madd_f64(iters, a, b)),
+                Kernel::FmaF64 => black_box(fma_f64(iters, a, b)),
             }
         };
         #[cfg(feature = "parallel")]
@@ -146,22 +197,31 @@ pub fn main(args: Vec<String>) {
                 .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
         })
         .unwrap_or_else(|| "unknown".into());
-    println!("CPU: {cpu}; build: baseline x86-64 (SSE2, no FMA instruction).\n");
+    println!(
+        "CPU: {cpu}; build: baseline x86-64 (SSE2, no FMA instruction) for the corrected \
+         operator's passes; the default operator's passes are compiled for AVX-512 and AVX2 + \
+         FMA too, and run the widest this CPU has.\n"
+    );
     println!("| measurement | 1 thread | 2 threads |\n|---|---|---|");
-    let f64_1 = madd_rate(false, 1, seconds);
-    let f64_2 = madd_rate(false, 2, seconds);
-    let f32_1 = madd_rate(true, 1, seconds);
-    let f32_2 = madd_rate(true, 2, seconds);
-    println!(
-        "| multiply-add, f64 (GFlop/s) | {:.2} | {:.2} |",
-        f64_1 / 1e9,
-        f64_2 / 1e9
-    );
-    println!(
-        "| multiply-add, f32 (GFlop/s) | {:.2} | {:.2} |",
-        f32_1 / 1e9,
-        f32_2 / 1e9
-    );
+    let f64_1 = madd_rate(Kernel::BaselineF64, 1, seconds);
+    let f64_2 = madd_rate(Kernel::BaselineF64, 2, seconds);
+    let f32_1 = madd_rate(Kernel::BaselineF32, 1, seconds);
+    let f32_2 = madd_rate(Kernel::BaselineF32, 2, seconds);
+    let fma_s1 = madd_rate(Kernel::FmaF64, 1, seconds);
+    let fma_s2 = madd_rate(Kernel::FmaF64, 2, seconds);
+    let lanes = vector_lanes();
+    let (fma_1, fma_2) = (fma_s1 * lanes, fma_s2 * lanes);
+    let vector_row =
+        format!("fused multiply-add, f64, scalar x {lanes:.0} lanes (GFlop/s, the vector peak)");
+    let rows = [
+        ("multiply-add, f64, baseline (GFlop/s)", f64_1, f64_2),
+        ("multiply-add, f32, baseline (GFlop/s)", f32_1, f32_2),
+        ("fused multiply-add, f64, scalar (GFlop/s)", fma_s1, fma_s2),
+        (vector_row.as_str(), fma_1, fma_2),
+    ];
+    for (name, one, two) in rows {
+        println!("| {name} | {:.2} | {:.2} |", one / 1e9, two / 1e9);
+    }
     let bw1 = triad_rate(1, seconds);
     let bw2 = triad_rate(2, seconds);
     println!(
@@ -169,14 +229,54 @@ pub fn main(args: Vec<String>) {
         bw1 / 1e9,
         bw2 / 1e9
     );
-    println!("\nLeast time per bond of each pass on 2 threads (flops / the f64 rate, bytes / the bandwidth; the larger is the floor), for 32 bonds a particle as us per particle-step:\n");
+    // Each pass's least time per bond on `threads` threads: its flops at the rate of the code
+    // it runs as (the default operator's vector FMA, the corrected operator's baseline), or its
+    // bytes at the triad's bandwidth, whichever is longer.
+    let floor_ns = |op: &str, flops: f64, bytes: f64, one: bool| -> (f64, f64) {
+        let rate = match (op == "second_order", one) {
+            (true, true) => fma_1,
+            (true, false) => fma_2,
+            (false, true) => f64_1,
+            (false, false) => f64_2,
+        };
+        let bw = if one { bw1 } else { bw2 };
+        (flops / rate * 1e9, bytes / bw * 1e9)
+    };
+    println!("\nLeast time per bond of each pass on 2 threads (flops at the rate of the code the pass runs as, bytes at the triad's bandwidth; the larger is the floor), for 32 bonds a particle as us per particle-step:\n");
     println!("| operator | pass | flops/bond | bytes/bond | compute floor (ns/bond) | memory floor (ns/bond) | floor, us per particle-step |\n|---|---|---|---|---|---|---|");
     for (op, pass, flops, bytes) in PASS_COUNTS {
-        let c = flops / f64_2 * 1e9;
-        let m = bytes / bw2 * 1e9;
+        let (c, m) = floor_ns(op, *flops, *bytes, false);
         println!(
             "| {op} | {pass} | {flops:.0} | {bytes:.0} | {c:.3} | {m:.3} | {:.3} |",
             32.0 * c.max(m) / 1e3
         );
+    }
+    // Against what the loops do: one thread, case 2 (`mps study throughput`), both passes.
+    println!("\nMeasured against the floor, one thread, both passes of a force evaluation (case 2 at dp 0.025, `study throughput`: the best of 3 runs of 300 steps):\n");
+    println!("| operator | floor (ns per directed bond) | measured (ns per directed bond) | measured / floor |\n|---|---|---|---|");
+    for (name, model) in [
+        ("corrected", ElasticModel::Corrected),
+        ("second_order", ElasticModel::SecondOrder),
+    ] {
+        let floor: f64 = PASS_COUNTS
+            .iter()
+            .filter(|(op, ..)| *op == name)
+            .map(|(op, _, flops, bytes)| {
+                let (c, m) = floor_ns(op, *flops, *bytes, true);
+                c.max(m)
+            })
+            .sum();
+        let best = (0..3)
+            .filter_map(|_| single_thread_throughput(model).ok())
+            .fold(0.0f64, f64::max);
+        if best > 0.0 {
+            let measured = 1e9 / best;
+            println!(
+                "| {name} | {floor:.2} | {measured:.2} | {:.1} |",
+                measured / floor
+            );
+        } else {
+            println!("| {name} | {floor:.2} | the run failed | |");
+        }
     }
 }

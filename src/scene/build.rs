@@ -319,6 +319,7 @@ where
                 scene,
                 k,
                 fill.shape.as_ref().map(|s| s.volumes.as_slice()),
+                fill.shape.as_ref().is_some_and(|s| s.solid_box.is_some()),
                 fill.lost_volume,
             ));
             let velocity = initial_velocity::<D>(scene, k, &pts)?;

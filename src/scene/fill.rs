@@ -2,7 +2,7 @@
 //! lattice points of a body's boxes (cell centres at the particle spacing), or of a body with
 //! shapes the lattice points inside its solid with the solid's volume, normal and area per
 //! particle (module `shape`).
-use super::shape::{to3, Geometry};
+use super::shape::{to3, Geometry, Solid};
 use super::{err, Scene, SceneError};
 use crate::par_iter_mut;
 #[allow(unused_imports)]
@@ -84,9 +84,38 @@ fn subcells(d: usize) -> usize {
     }
 }
 
+/// The origin of the lattice of a body with shapes: `boxes[0].min`, so that a box fills
+/// exactly as the box of a plain body. A solid that is one box given as shapes (`one_box`)
+/// has its cells centred on it, per axis as many as come nearest to its extent: a side of a
+/// whole number of spacings falls on the cell faces (it fills as the box body, and the
+/// second-order operator's closure serves it), any other is cut alike at both ends, its faces
+/// between a quarter and three quarters of a spacing beyond the outer particles (a symmetric
+/// section stays symmetric; the closure takes the faces where they are). Other solids without
+/// boxes: the origin. Cell centres are at origin + (i + 1/2) l0.
+pub(crate) fn lattice_origin(scene: &Scene, b: &super::Body, g: &Geometry, d: usize) -> [f64; 3] {
+    if let Some(r) = b.boxes.first() {
+        return to3(&r.min);
+    }
+    let Some((lo, hi)) = one_box(g, d) else {
+        return [0.0; 3];
+    };
+    let dp = scene.particle_spacing;
+    let mut o = [0.0; 3];
+    for k in 0..d {
+        let cells = (hi[k] - lo[k]) / dp;
+        let whole = cells.round();
+        let left = if (cells - whole).abs() <= 1e-9 * cells.max(1.0) {
+            0.0
+        } else {
+            cells - whole
+        };
+        o[k] = lo[k] + 0.5 * left * dp;
+    }
+    o
+}
+
 /// The lattice of a body with shapes: first cell index and cells per axis over the bounds of
-/// its solid (one cell of margin). Cell centres are at origin + (i + 1/2) l0 with origin =
-/// boxes[0].min (0 without boxes), so a box fills exactly as the box of a plain body.
+/// its solid (one cell of margin), on the lattice of `lattice_origin`.
 pub(crate) fn lattice_range(
     scene: &Scene,
     b: &super::Body,
@@ -94,7 +123,7 @@ pub(crate) fn lattice_range(
     d: usize,
 ) -> Option<([i64; 3], [usize; 3])> {
     let dp = scene.particle_spacing;
-    let o = b.boxes.first().map(|r| to3(&r.min)).unwrap_or([0.0; 3]);
+    let o = lattice_origin(scene, b, g, d);
     let (lo, hi) = g.bounds();
     let mut first = [0i64; 3];
     let mut n = [1usize; 3];
@@ -209,6 +238,53 @@ fn cut_cell(g: &Geometry, c: [f64; 3], dp: f64, d: usize) -> CutCell {
     (frac, cen, area, m2)
 }
 
+/// The solid's bounds when it is one axis-aligned box: its parts are boxes, nothing is cut,
+/// and they cover their bounds (every cell of the grid of their faces' coordinates lies in
+/// one of them).
+fn one_box(g: &Geometry, d: usize) -> Option<([f64; 3], [f64; 3])> {
+    if !g.cuts.is_empty() {
+        return None;
+    }
+    let boxes: Vec<([f64; 3], [f64; 3])> = g
+        .parts
+        .iter()
+        .map(|s| match s {
+            Solid::Box { min, max, .. } => Some((*min, *max)),
+            _ => None,
+        })
+        .collect::<Option<_>>()?;
+    if boxes.is_empty() || boxes.len() > 64 {
+        return None;
+    }
+    let (lo, hi) = g.bounds();
+    let cuts: Vec<Vec<f64>> = (0..d)
+        .map(|a| {
+            let mut c: Vec<f64> = boxes.iter().flat_map(|(l, h)| [l[a], h[a]]).collect();
+            c.sort_by(f64::total_cmp);
+            c.dedup();
+            c
+        })
+        .collect();
+    let cells: usize = cuts.iter().map(|c| c.len() - 1).product();
+    for code in 0..cells {
+        let mut c = code;
+        let mut p = [0.0; 3];
+        for a in 0..d {
+            let n = cuts[a].len() - 1;
+            let j = c % n;
+            c /= n;
+            p[a] = 0.5 * (cuts[a][j] + cuts[a][j + 1]);
+        }
+        if !boxes
+            .iter()
+            .any(|(l, h)| (0..d).all(|a| p[a] > l[a] && p[a] < h[a]))
+        {
+            return None;
+        }
+    }
+    Some((lo, hi))
+}
+
 /// The particles of body k of a validated scene that has shapes or cuts (see `Body`).
 fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>, SceneError> {
     let b = &scene.bodies[k];
@@ -221,7 +297,7 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
             "the body's solid is unbounded or spans more than 1e7 particles along an axis",
         )
     })?;
-    let o = b.boxes.first().map(|r| to3(&r.min)).unwrap_or([0.0; 3]);
+    let o = lattice_origin(scene, b, &g, D);
     let cells: usize = n.iter().take(D).product();
     let centre = |code: usize| -> [f64; 3] {
         let mut p = [0.0; 3];
@@ -406,10 +482,17 @@ fn shaped_points<const D: usize>(scene: &Scene, k: usize) -> Result<BodyFill<D>,
         .map(|(a, nrm)| if nrm.norm() > 0.0 { *a } else { 0.0 })
         .collect();
     let count = points.len();
+    let solid_box = one_box(&g, D).map(|(lo, hi)| {
+        (
+            Vect::<D>::from_fn(|a, _| lo[a]),
+            Vect::<D>::from_fn(|a, _| hi[a]),
+        )
+    });
     Ok(BodyFill {
         points,
         box_of: vec![b.boxes.len() as u32; count],
         shape: Some(ShapeFill {
+            solid_box,
             volumes,
             normals,
             areas: area,

@@ -99,8 +99,9 @@ pub struct Region {
 /// exactly on a face (used for supports: see docs/model.md).
 ///
 /// A body with `shapes` or `cuts` is the union of its boxes and shapes less its cuts, filled on
-/// one lattice: the cell centres at `boxes[0].min` + (i + 1/2) l0 (at (i + 1/2) l0 without boxes)
-/// that lie inside. Each particle's volume (and mass) is the part of the solid in its cell,
+/// one lattice: the cell centres at `boxes[0].min` + (i + 1/2) l0 that lie inside (at
+/// (i + 1/2) l0 without boxes; a solid that is one box given as shapes has its cells centred on
+/// it: a side of a whole number of spacings on cell faces, any other cut alike at both ends). Each particle's volume (and mass) is the part of the solid in its cell,
 /// plus the parts of cells next to it whose centres fall outside, so the body's volume is the
 /// solid's (not a staircase's); surface particles carry the solid's outward normal and area.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]

@@ -214,6 +214,7 @@ pub(crate) fn shape_warnings(
     scene: &Scene,
     k: usize,
     volumes: Option<&[f64]>,
+    one_box: bool,
     lost: f64,
 ) -> Vec<SceneWarning> {
     let b = &scene.bodies[k];
@@ -247,7 +248,9 @@ pub(crate) fn shape_warnings(
             ),
         });
     }
-    if scene.solver.model == crate::physics::ElasticModel::SecondOrder {
+    // A solid that is one box (its sides any length) is closed like a body of boxes (module
+    // `physics::sbp`); where its closure fails, the World's build says why.
+    if scene.solver.model == crate::physics::ElasticModel::SecondOrder && !one_box {
         out.push(SceneWarning {
             field: bf.clone(),
             message: format!(
@@ -286,6 +289,7 @@ impl Scene {
                         self,
                         k,
                         f.shape.as_ref().map(|s| s.volumes.as_slice()),
+                        f.shape.as_ref().is_some_and(|s| s.solid_box.is_some()),
                         f.lost_volume,
                     ));
                     w

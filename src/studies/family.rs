@@ -388,6 +388,58 @@ pub fn rect_hole(n: usize) -> FamilyCase {
     }
 }
 
+/// The single-box cantilever of `single_box` (walls behind the face) written as a user who
+/// draws solids writes it: the beam and its 3 wall layers as one `box` shape (`shapes`, no
+/// `boxes`: the lattice is the body's own) at `across` particle spacings through the section
+/// (a whole number: the faces fall on the lattice's cell faces; else they cut the outer
+/// cells), the whole scene moved by `offset` spacings across the beam (y, and z in 3D; the
+/// probe with it). A body written this way must not depend on where it sits.
+pub fn shape_written(dim: usize, across: f64, offset: f64) -> FamilyCase {
+    let mut case = single_box(dim, 4, ClampStyle::Walls);
+    let s = &mut case.scene;
+    let h = s.bodies[0].boxes[0].max[1];
+    let length = s.bodies[0].boxes[0].max[0];
+    let dp = 2.0 * h / across;
+    s.particle_spacing = dp;
+    let at = |x: f64, y: f64| v(dim, x, y + offset * dp, y + offset * dp);
+    s.bodies[0].boxes.clear();
+    s.bodies[0].shapes = vec![crate::scene::shape::Shape::Box(Region {
+        min: at(-3.0 * dp, -h),
+        max: at(length, h),
+    })];
+    s.boundaries[0].region = Region {
+        min: at(-3.0 * dp, -h),
+        max: at(-0.25 * dp, h),
+    };
+    s.probes[0].point = at(length, 0.0);
+    s.description = format!("{} written as a box shape", s.description);
+    case.name = format!(
+        "{} {across} across, written as a box shape moved by {offset} dp",
+        if dim == 3 {
+            "cantilever 3D"
+        } else {
+            "plate 2D"
+        }
+    );
+    case
+}
+
+/// The rows of the single box written as a box shape: (spacings added to `n` through the
+/// section, offset of the scene in spacings). By default the box moved by 0.3 spacings, and
+/// the box half a spacing thicker (faces cutting the outer cells); `SHAPE_EXTRA=0.2,0.5,...`
+/// (a study's knob) gives other thicknesses, unmoved.
+fn shape_rows() -> Vec<(f64, f64)> {
+    std::env::var("SHAPE_EXTRA")
+        .ok()
+        .map(|e| {
+            e.split(',')
+                .filter_map(|x| x.trim().parse::<f64>().ok())
+                .map(|x| (x, 0.0))
+                .collect()
+        })
+        .unwrap_or_else(|| vec![(0.0, 0.3), (0.5, 0.0)])
+}
+
 /// The family at `n` particles through the thinnest section: the single-box cantilevers with
 /// every clamp style, then the multi-box shapes (walls behind the face).
 pub fn family(n: usize, three_d: bool) -> Vec<FamilyCase> {
@@ -406,6 +458,12 @@ pub fn family(n: usize, three_d: bool) -> Vec<FamilyCase> {
     }
     out.push(l_bracket(n));
     out.push(rect_hole(n));
+    for (extra, offset) in shape_rows() {
+        out.push(shape_written(2, n as f64 + extra, offset));
+        if three_d {
+            out.push(shape_written(3, n as f64 + extra, offset));
+        }
+    }
     if three_d && n == 4 {
         out.extend(case2_clamps());
     }

@@ -967,3 +967,81 @@ fn snapshots_and_surface_meshes_show_the_shapes() {
     mps_solid::output::write_surface_vtu(&dir.0.join("surface.vtu"), &mesh, &u, sim.time())
         .unwrap();
 }
+
+/// The linearised first frequency and static tip deflection of a family case against its
+/// FEM reference (relative errors).
+fn family_errors(case: &mps_solid::studies::family::FamilyCase) -> (f64, f64) {
+    let b = mps_solid::studies::bending::linear_bending(&case.scene).unwrap();
+    (
+        b.f1 / case.reference.f1 - 1.0,
+        b.tip / case.reference.static_u - 1.0,
+    )
+}
+
+#[test]
+fn a_box_given_as_a_shape_bends_as_the_box_wherever_it_sits() {
+    // The GMS plate (plane strain) and its 3 clamp wall layers written as one `box` shape, as
+    // a user who draws solids writes it. Its lattice is its own: centred on the solid, so a
+    // side of a whole number of spacings falls on the cell faces wherever the body sits, and
+    // the second-order operator's closure serves it as it serves the box body. Before, the
+    // lattice was anchored at the origin: 5 across, the faces cut the outer cells in half,
+    // the closure took the 4 particles inside for a box of 4 across and dropped the rest of
+    // the section (static deflection +55.8 %, f1 -19.8 %).
+    use mps_solid::studies::family::shape_written;
+    for (across, offset) in [(5.0, 0.0), (4.0, 0.3)] {
+        let case = shape_written(2, across, offset);
+        let (ef, eu) = family_errors(&case);
+        eprintln!(
+            "{}: f1 {:+.3} %, static {:+.3} %",
+            case.name,
+            100.0 * ef,
+            100.0 * eu
+        );
+        // The box body's own figures (-0.017 / +0.030 % at 5 across, -0.008 / +0.003 % at 4)
+        // and at most 0.1 %: the closure's accuracy on one box (docs/model.md).
+        assert!(
+            ef.abs() < 1e-3 && eu.abs() < 1e-3,
+            "{}: f1 {ef:+.5}, static {eu:+.5}",
+            case.name
+        );
+    }
+}
+
+#[test]
+fn a_box_shape_whose_sides_cut_cells_is_closed_at_its_faces() {
+    // The same plate 8.5 and 8.4 particle spacings thick: the lattice centred on it leaves 9
+    // particles with the faces a quarter spacing beyond the outer ones, and 8 with the faces
+    // 0.7 spacings beyond. The closure takes the faces where they are (volumes integrating
+    // cubics over the solid, face points on the faces). Before, the closure threw the cut
+    // cells' volumes away and closed the particles' own box (8.5 across: f1 -5.8 %, static
+    // +12.8 %); with the plain fits and the cut cells' volumes instead, the faces were first
+    // order: -0.30 / +0.61 % at 8.5 across, -0.47 / +0.97 % at 4.5, -0.15 / +0.30 % at 16.5.
+    use mps_solid::studies::family::shape_written;
+    for across in [8.5, 8.4] {
+        let case = shape_written(2, across, 0.0);
+        let w = Model::<2>::build(&case.scene).unwrap();
+        assert!(
+            w.world.closure.iter().all(|r| r.is_ok()),
+            "{}: {:?}",
+            case.name,
+            w.world.closure
+        );
+        let (ef, eu) = family_errors(&case);
+        eprintln!(
+            "{}: f1 {:+.3} %, static {:+.3} %",
+            case.name,
+            100.0 * ef,
+            100.0 * eu
+        );
+        // Measured +0.105 / -0.209 % (faces a quarter spacing out) and -0.010 / +0.015 %
+        // (0.7 out): the discretisation error of 8 to 9 particles through a bent section with
+        // its faces off the cell faces, within issue 24's 0.15 % in f1 at 8 across and, in the
+        // deflection, twice it (the quarter-spacing faces converge at first order: 0.42, 0.21,
+        // 0.09 % at 4.5, 8.5, 16.5 across).
+        assert!(
+            ef.abs() < 1.5e-3 && eu.abs() < 3e-3,
+            "{}: f1 {ef:+.5}, static {eu:+.5}",
+            case.name
+        );
+    }
+}

@@ -59,14 +59,66 @@ const TIE: usize = 5;
 /// system is consistent to round-off; a failed solve leaves the body's plain fits).
 const ACCEPT: f64 = 1e-3;
 
-/// The 1D weights (in units of l0) of n >= 3 cell-centred points.
-fn weights_1d(n: usize) -> Vec<f64> {
+/// Layers from a face over which the sliver of a face that cuts cells is spread: fewer than
+/// TIE, so that the tied rows keep the interior's weight 1.
+const SLIVER_LAYERS: usize = 5;
+
+/// Least weight (in l0) a closed particle may have: a face that cuts its cells more deeply
+/// than the layers can take keeps the plain fits.
+const LEAST_WEIGHT: f64 = 0.25;
+
+/// The 1D weights (in units of l0) of n >= 3 cell-centred points 0, 1, ..., n - 1 over the
+/// interval from `delta[0]` before the first to `delta[1]` beyond the last (a face on the
+/// cell faces is 1/2 out; one that cuts cells is further or nearer, by the sliver of cell the
+/// outer particle carries or lacks). At 1/2 the end-corrected midpoint rule; a sliver adds to
+/// the first layers from its face the least-norm weights that integrate its (signed) moments
+/// 1, x, x^2 (and x^3 when the two ends differ): the rule then integrates cubics exactly over
+/// the interval, with equal ends by symmetry. None where a weight would fall below
+/// LEAST_WEIGHT or the layers are too few.
+fn weights_1d(n: usize, delta: [f64; 2]) -> Option<Vec<f64>> {
     let mut w = vec![1.0; n];
     for (k, d) in END_CORRECTION.iter().enumerate() {
         w[k] += d;
         w[n - 1 - k] += d;
     }
-    w
+    let equal = (delta[0] - delta[1]).abs() <= 1e-12;
+    let conditions = if equal { 3 } else { 4 };
+    let layers = SLIVER_LAYERS.min(n);
+    for (end, &dl) in delta.iter().enumerate() {
+        if dl.is_nan() || dl <= 0.0 {
+            return None;
+        }
+        if (dl - 0.5).abs() <= 1e-12 {
+            continue;
+        }
+        if layers < conditions {
+            return None;
+        }
+        // The sliver [-dl, -1/2] in the layers' coordinate (layer k at k).
+        let moment = |p: i32| ((-0.5f64).powi(p + 1) - (-dl).powi(p + 1)) / (p + 1) as f64;
+        let v =
+            nalgebra::DMatrix::<f64>::from_fn(conditions, layers, |p, k| (k as f64).powi(p as i32));
+        let t = nalgebra::DVector::<f64>::from_fn(conditions, |p, _| moment(p as i32));
+        let lam = (&v * v.transpose()).lu().solve(&t)?;
+        let inc = v.transpose() * lam;
+        for k in 0..layers {
+            let at = if end == 0 { k } else { n - 1 - k };
+            w[at] += inc[k];
+        }
+    }
+    w.iter().all(|&x| x >= LEAST_WEIGHT).then_some(w)
+}
+
+/// Where a body's faces are, for the closure.
+#[derive(Clone, Copy, Debug)]
+pub enum BodyFaces<const D: usize> {
+    /// A body of boxes: its faces are half a spacing beyond its outer particles.
+    Lattice,
+    /// A body filled from a solid that is this axis-aligned box (least and greatest corners,
+    /// m): its faces may cut the outer particles' cells.
+    Box(Vect<D>, Vect<D>),
+    /// A body filled from another solid: its faces are not a box's.
+    Other,
 }
 
 /// What the closure changes, in the world's indexing.
@@ -125,12 +177,13 @@ fn monomials<const D: usize>(s: &Vect<D>, out: &mut Vec<f64>) {
 }
 
 /// Closes the second-order operator of every body that is a filled lattice box once mirrored
-/// across its mirror faces. `so` is the world's operator (its rigid flags and ghosts),
-/// `bonds` the world's bonds, `names` the bodies' names. `stop` is polled in the solves (from any thread): when it says
+/// across its mirror faces, with its faces where `faces` says (per body). `so` is the world's
+/// operator (its rigid flags and ghosts), `bonds` the world's bonds, `names` the bodies' names. `stop` is polled in the solves (from any thread): when it says
 /// so, the closure ends at once with `interrupted` set.
 #[allow(clippy::too_many_arguments)]
 pub fn close<const D: usize>(
     x0: &[Vect<D>],
+    faces: &[BodyFaces<D>],
     body: &[u32],
     bonds: &Bonds<D>,
     so: &SecondOrder<D>,
@@ -152,7 +205,7 @@ where
     let ghost_of: HashMap<u32, &Ghost<D>> = so.ghosts.iter().map(|g| (g.ghost, g)).collect();
     for (b, name) in names.iter().enumerate() {
         let r = close_body(
-            x0, body, bonds, so, &ghost_of, l0, re_factor, b as u32, name, stop, &mut out,
+            x0, faces[b], body, bonds, so, &ghost_of, l0, re_factor, b as u32, name, stop, &mut out,
         );
         out.report.push(r);
         if out.interrupted.is_some() {
@@ -165,6 +218,7 @@ where
 #[allow(clippy::too_many_arguments)]
 fn close_body<const D: usize>(
     x0: &[Vect<D>],
+    faces: BodyFaces<D>,
     body: &[u32],
     bonds: &Bonds<D>,
     so: &SecondOrder<D>,
@@ -190,6 +244,12 @@ where
         .collect();
     if real.is_empty() {
         return Err("it has no particles of its own".into());
+    }
+    if matches!(faces, BodyFaces::Other) {
+        return Err(
+            "it is filled from a solid that is not a box, whose faces cut the lattice's cells"
+                .into(),
+        );
     }
     if real.iter().any(|&i| so.rigid[i]) {
         return Err("it has a rigid grip: a clamped or fully prescribed group without a mirror face; a clamp on a plane face takes boundaries[k].mirror".into());
@@ -259,7 +319,55 @@ where
     if ext.iter().any(|&e| e < 3) {
         return Err("it is less than 3 particles across".into());
     }
-    let w1: Vec<Vec<f64>> = ext.iter().map(|&e| weights_1d(e)).collect();
+    // Where the virtual box's faces are (spacings beyond its outer particles, per axis and
+    // side): half a spacing for a body of boxes; for a box solid, where its faces are, except
+    // on a side beyond which the solid holds wall layers (a clamp: its face is half a spacing
+    // out, where the followers hold it); across a mirror plane, where the mirrored face is.
+    let mut delta = [[0.5f64; 2]; D];
+    if let BodyFaces::Box(blo, bhi) = faces {
+        let corner = |x: &Vect<D>| frame.transpose() * (x - xref);
+        let (a0, a1) = (corner(&blo), corner(&bhi));
+        let (slo, shi) = (a0.inf(&a1), a0.sup(&a1));
+        let mut rlo = loc(real[0]);
+        let mut rhi = rlo;
+        for &i in &real {
+            rlo = rlo.inf(&loc(i));
+            rhi = rhi.sup(&loc(i));
+        }
+        let mut real_delta = [[0.5f64; 2]; D];
+        for a in 0..D {
+            for (side, dl) in [(rlo[a] - slo[a]) / l0, (shi[a] - rhi[a]) / l0]
+                .into_iter()
+                .enumerate()
+            {
+                if dl <= 0.0 {
+                    return Err("a particle lies outside its solid's box (internal)".into());
+                }
+                // Beyond the next cell's centre the solid holds walls: a clamped face.
+                real_delta[a][side] = if dl > 1.0 + 1e-6 { 0.5 } else { dl };
+            }
+        }
+        for a in 0..D {
+            let mirrored = |side: usize| {
+                planes
+                    .iter()
+                    .any(|(n, _)| n[a] != 0.0 && (n[a] > 0.0) == (side == 1))
+            };
+            for side in 0..2 {
+                delta[a][side] = match (mirrored(side), mirrored(1 - side)) {
+                    (false, _) => real_delta[a][side],
+                    (true, false) => real_delta[a][1 - side],
+                    (true, true) => 0.5,
+                };
+            }
+        }
+    }
+    let w1: Vec<Vec<f64>> = ext
+        .iter()
+        .zip(&delta)
+        .map(|(&e, &dl)| weights_1d(e, dl))
+        .collect::<Option<_>>()
+        .ok_or("its faces cut its outer particles' cells more deeply than its layers can take")?;
     // The reduced box: along an axis longer than 2 REACH + 1 layers, the layers between the
     // first REACH and the last REACH are all alike (the same stencils, weights and targets),
     // so the problem is solved on a box of 2 REACH + 1 layers there, with the rows between
@@ -472,7 +580,7 @@ where
                     continue;
                 }
                 let mut dd = Vect::<D>::zeros();
-                dd[d] = side * 0.5 * l0;
+                dd[d] = side * delta[d][usize::from(side > 0.0)] * l0;
                 let y = vx[i] + dd;
                 let area: f64 = l0.powi(D as i32 - 1)
                     * (0..D)
@@ -648,7 +756,7 @@ mod tests {
     #[test]
     fn end_corrected_weights_integrate_cubics() {
         for n in 3..20usize {
-            let w = weights_1d(n);
+            let w = weights_1d(n, [0.5, 0.5]).unwrap();
             assert!(w.iter().all(|&v| v > 0.5), "n = {n}: {w:?}");
             for k in 0..4 {
                 let sum: f64 = (0..n).map(|i| w[i] * (i as f64 + 0.5).powi(k)).sum();
@@ -658,6 +766,45 @@ mod tests {
                     "n = {n}, x^{k}: {sum} vs {exact}"
                 );
             }
+        }
+    }
+
+    /// With faces that cut the outer cells (a box solid whose sides are not whole numbers of
+    /// spacings: the face `delta` spacings beyond the outer particle, a quarter to three
+    /// quarters on the lattice the fill centres), the weights still integrate x^0..x^3 exactly
+    /// over the solid's interval, equal ends or not, and stay positive; at one half they are
+    /// the end-corrected rule bit for bit.
+    #[test]
+    fn weights_with_cut_faces_integrate_cubics_over_the_solid() {
+        for n in 4..20usize {
+            for d0 in [0.25, 0.4, 0.5, 0.6, 0.75] {
+                for d1 in [0.25, 0.5, 0.7, 0.75] {
+                    let Some(w) = weights_1d(n, [d0, d1]) else {
+                        // Only unequal ends on few layers may be refused (four moments on a
+                        // side's layers).
+                        assert!(n < 5 && d0 != d1, "n = {n}, {d0}, {d1} refused");
+                        continue;
+                    };
+                    assert!(w.iter().all(|&v| v >= 0.25), "n = {n}, {d0}, {d1}: {w:?}");
+                    let (a, b) = (-d0, n as f64 - 1.0 + d1);
+                    for k in 0..4 {
+                        let sum: f64 = (0..n).map(|i| w[i] * (i as f64).powi(k)).sum();
+                        let exact = (b.powi(k + 1) - a.powi(k + 1)) / (k + 1) as f64;
+                        assert!(
+                            (sum - exact).abs() < 1e-11 * (n as f64).powi(k + 1),
+                            "n = {n}, faces {d0} / {d1}, x^{k}: {sum} vs {exact}"
+                        );
+                    }
+                }
+            }
+            assert_eq!(weights_1d(n, [0.5, 0.5]), {
+                let mut w = vec![1.0; n];
+                for (k, d) in super::END_CORRECTION.iter().enumerate() {
+                    w[k] += d;
+                    w[n - 1 - k] += d;
+                }
+                Some(w)
+            });
         }
     }
 }

@@ -457,8 +457,18 @@ where
             // The closure's solves are the longest loop of a set-up (tens of seconds for a
             // bulky body): they stop within an iteration at the bound or a stop request.
             let interrupt = clock.interrupt();
+            let faces: Vec<sbp::BodyFaces<D>> = bodies
+                .iter()
+                .map(|b| match &b.shape {
+                    None => sbp::BodyFaces::Lattice,
+                    Some(s) => s.solid_box.map_or(sbp::BodyFaces::Other, |(lo, hi)| {
+                        sbp::BodyFaces::Box(lo, hi)
+                    }),
+                })
+                .collect();
             let cl = sbp::close(
                 &p.x0,
+                &faces,
                 &p.body,
                 &bonds,
                 &op.second,

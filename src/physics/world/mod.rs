@@ -217,6 +217,10 @@ pub struct ShapeFill<const D: usize> {
     /// what the second-order operator's cell energy integrates with (module `second_order`).
     /// A whole cell: zero and l0^(d+2) / 12 on the diagonal.
     pub moments: Vec<(Vect<D>, Mat<D>)>,
+    /// The solid when it is one axis-aligned box (its least and greatest corners, m): a box
+    /// given as shapes whose sides need not be whole numbers of spacings. The second-order
+    /// operator's closure (module `sbp`) then knows its faces, also where they cut cells.
+    pub solid_box: Option<(Vect<D>, Vect<D>)>,
 }
 
 /// Initial velocity of the particles of a body. Particles of a boundary group start with zero

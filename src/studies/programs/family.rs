@@ -2,7 +2,8 @@
 //! first frequency and static deflection against the FEM, per clamp style and shape, with the
 //! scene's accuracy warnings. `mps study family 4 8` (THREE_D=1 adds the 3D cantilevers;
 //! ONLY=text keeps the cases whose name contains it; PEAK=1 adds the first peak under sudden
-//! gravity in the time domain).
+//! gravity in the time domain; SHAPE_EXTRA=0.2,0.5 sets how much thicker than n spacings the
+//! rows of the box written as a shape are).
 use crate::studies::family::family_markdown;
 
 pub fn main(args: Vec<String>) {

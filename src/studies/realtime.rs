@@ -10,7 +10,7 @@ use crate::fmi::variables::{Causality, VarType};
 use crate::physics::ElasticModel;
 use crate::scene::Scene;
 use crate::studies::bending::{cantilever3d_scene, cantilever_reference, linear_bending};
-use crate::studies::cases::{case1_scene, case2_scene, Support};
+use crate::studies::cases::{case1_scene, case2_scene, case2_shape_scene, Support};
 use crate::studies::report;
 
 /// Communication step of the real-time figures (s).
@@ -154,9 +154,10 @@ fn pct(e: f64) -> String {
 }
 
 /// The three scenes' rows with the default operator: case 1 (dp 0.05, 0.025 m: its figures
-/// u_x and u_z along the column against the clamped column's FEM), case 2 (dp 0.025 m, the
-/// coarsest lattice that fits its 0.225 m section and 1 m span: first frequency and peak
-/// deflection), the slender 3D cantilever (3 and 4 particles across: the linearised first
+/// u_x and u_z along the column against the clamped column's FEM), case 2 (written as a box
+/// shape at dp = 1/20, 1/21, ... m, whole spacings along its 1 m span, its 0.225 m section cut
+/// where it falls; then dp 0.025 m, the coarsest lattice that fits both: first frequency and
+/// peak deflection), the slender 3D cantilever (3 and 4 particles across: the linearised first
 /// frequency and the first peak under sudden gravity).
 pub fn real_time_rows() -> Result<Vec<RealTimeRow>, String> {
     let so = ElasticModel::SecondOrder;
@@ -172,15 +173,27 @@ pub fn real_time_rows() -> Result<Vec<RealTimeRow>, String> {
             ))
         })
     };
-    let case2 = |dp: f64| -> Box<dyn Fn() -> Result<Candidate, String>> {
+    // Case 2 at the paper's lattice (dp 0.025 m: 9 spacings through the section and 40 along
+    // the span, the coarsest that fits both) or written as a box shape at a spacing of whole
+    // spacings along the span only, its faces cutting the outer cells.
+    let case2 = |dp: f64, shape: bool| -> Box<dyn Fn() -> Result<Candidate, String>> {
         Box::new(move || {
-            let r = report::case2(dp, so, None, |_| {})?;
+            let scene = if shape {
+                case2_shape_scene(dp)
+            } else {
+                case2_scene(dp, so, None, Support::Face)
+            };
+            let r = report::case2_of(&scene, |_| {})?;
             Ok((
-                format!("dp {dp} m"),
+                if shape {
+                    format!("dp 1/{:.0} m, a box shape", 1.0 / dp)
+                } else {
+                    format!("dp {dp} m")
+                },
                 r.run.particles,
                 format!("f1 {}, peak {}", pct(r.frequency_error), pct(r.peak_error)),
                 r.frequency_error.abs().max(r.peak_error.abs()),
-                case2_scene(dp, so, None, Support::Face),
+                scene,
             ))
         })
     };
@@ -211,7 +224,13 @@ pub fn real_time_rows() -> Result<Vec<RealTimeRow>, String> {
             "case 1: column under its own weight",
             vec![case1(0.05), case1(0.025)],
         )?,
-        first_within("case 2: clamped-pinned beam", vec![case2(0.025)])?,
+        first_within(
+            "case 2: clamped-pinned beam",
+            (20..40)
+                .map(|n| case2(1.0 / n as f64, true))
+                .chain([case2(0.025, false)])
+                .collect(),
+        )?,
         first_within("slender 3D cantilever", vec![cantilever(3), cantilever(4)])?,
     ])
 }

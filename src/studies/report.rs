@@ -4,6 +4,7 @@
 use super::cases::*;
 use crate::physics::ElasticModel;
 use crate::runner::{run_scene, RunResult};
+use crate::scene::Scene;
 use serde::Serialize;
 
 /// The 3D FEM reference of case 2, computed by tools/fem_reference.py (see reference/README.md).
@@ -216,8 +217,13 @@ pub fn case2(
     dt: Option<f64>,
     on_sample: impl FnMut(f64),
 ) -> Result<Case2Report, String> {
-    let scene = case2_scene(dp, model, dt, Support::Face);
-    let r = run_scene(&scene, on_sample)?;
+    case2_of(&case2_scene(dp, model, dt, Support::Face), on_sample)
+}
+
+/// Runs a scene of case 2 (a probe on the axis at x = 0.56 m as its analysis) and compares.
+pub fn case2_of(scene: &Scene, on_sample: impl FnMut(f64)) -> Result<Case2Report, String> {
+    let (dp, model) = (scene.particle_spacing, scene.solver.model);
+    let r = run_scene(scene, on_sample)?;
     let fem = fem_reference();
     let f = r.frequency_hz.ok_or("no frequency measured")?;
     let peak = r.peak_m.ok_or("no peak measured")?;

@@ -66,3 +66,24 @@ fn scene_files_match_the_case_builders() {
         );
     }
 }
+
+#[test]
+fn case2_written_as_a_box_shape_is_within_one_percent_at_5_particles_across() {
+    // Case 2 as a user who draws solids writes it (studies::cases::case2_shape_scene: one box
+    // shape from the clamp's 3 layers to the support's, regions for both, the default
+    // operator) at dp = 1/21 m: whole spacings along the 1 m span, 4.725 across the 0.225 m
+    // section (5 particles, the faces 0.36 of a spacing beyond the outer ones). The first
+    // frequency and the peak under sudden gravity against the 3D FEM within 1 %, issue 25's
+    // bound for its real-time figure (measured +0.33 % and -0.80 %; at the paper's dp = 0.025,
+    // 9 across, the box scene's -0.08 / +0.11 %). Before the closure took box solids' faces
+    // where they are, this scene was closed as the particles' own box (the section 0.19 m
+    // deep) or, at dp = 0.025, lost the half cells beyond its lattice: peak +19 %.
+    let scene = mps_solid::studies::cases::case2_shape_scene(1.0 / 21.0);
+    let r = report::case2_of(&scene, |_| {}).unwrap();
+    assert!(
+        r.frequency_error.abs() <= 0.01 && r.peak_error.abs() <= 0.01,
+        "f1 {:+.4}, peak {:+.4}",
+        r.frequency_error,
+        r.peak_error
+    );
+}

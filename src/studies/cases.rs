@@ -134,6 +134,33 @@ pub fn case1_scene(dp: f64, model: ElasticModel, dt: Option<f64>) -> Scene {
     }
 }
 
+/// Case 1 written as a user who draws solids writes it, at any spacing `dp` whose length is a
+/// whole number of spacings (1 m / dp): the column and 3 layers above its support face z = 0
+/// as one `box` shape (its 0.2 m section need not be whole spacings), a `clamped` region over
+/// those layers; the solver's defaults (second_order) with case 1's damping, the ramp of
+/// Eq. (46) with T = end_time and the probes of `case1_scene`.
+pub fn case1_shape_scene(dp: f64) -> Scene {
+    let mut s = case1_scene(dp, ElasticModel::SecondOrder, None);
+    let h = CASE1_HALF;
+    let w = 3.0 * dp;
+    s.name = "case1_column_shape".into();
+    s.description = format!(
+        "Paper case 1 (section 3.1) written with a box shape: 0.2 x 0.2 x 1.0 m column ({:.3}         particle spacings across), rho 1000, E 10 MPa, nu 0.3, hanging from the layers above z = 0,         clamped, gravity ramped by Eq. (46) with T = end_time, damping 20 1/s.",
+        2.0 * h / dp
+    );
+    s.bodies[0].boxes.clear();
+    s.bodies[0].shapes = vec![crate::scene::shape::Shape::Box(Region {
+        min: vec![-h, -h, -CASE1_LENGTH],
+        max: vec![h, h, w],
+    })];
+    s.boundaries[0].region = Region {
+        min: vec![-2.0 * h, -2.0 * h, 0.0],
+        max: vec![2.0 * h, 2.0 * h, 2.0 * w],
+    };
+    s.boundaries[0].mirror = None;
+    s
+}
+
 /// Closed form of case 1 (paper-cases.md): displacement (u_x, u_z) at (x, y, z = -s) (m).
 pub fn case1_closed_form(x: f64, y: f64, s: f64) -> (f64, f64) {
     let m = CASE1_MATERIAL;

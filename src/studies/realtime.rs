@@ -10,7 +10,9 @@ use crate::fmi::variables::{Causality, VarType};
 use crate::physics::ElasticModel;
 use crate::scene::Scene;
 use crate::studies::bending::{cantilever3d_scene, cantilever_reference, linear_bending};
-use crate::studies::cases::{case1_scene, case2_scene, case2_shape_scene, Support};
+use crate::studies::cases::{
+    case1_scene, case1_shape_scene, case2_scene, case2_shape_scene, Support,
+};
 use crate::studies::report;
 
 /// Communication step of the real-time figures (s).
@@ -153,23 +155,35 @@ fn pct(e: f64) -> String {
     format!("{:+.2} %", 100.0 * e)
 }
 
-/// The three scenes' rows with the default operator: case 1 (dp 0.05, 0.025 m: its figures
-/// u_x and u_z along the column against the clamped column's FEM), case 2 (written as a box
+/// The three scenes' rows with the default operator: case 1 (written as a box shape at dp =
+/// 1/20, 1/21, ... m, then dp 0.025 m: its figures u_x and u_z along the column against the
+/// clamped column's FEM), case 2 (written as a box
 /// shape at dp = 1/20, 1/21, ... m, whole spacings along its 1 m span, its 0.225 m section cut
 /// where it falls; then dp 0.025 m, the coarsest lattice that fits both: first frequency and
 /// peak deflection), the slender 3D cantilever (3 and 4 particles across: the linearised first
 /// frequency and the first peak under sudden gravity).
 pub fn real_time_rows() -> Result<Vec<RealTimeRow>, String> {
     let so = ElasticModel::SecondOrder;
-    let case1 = |dp: f64| -> Box<dyn Fn() -> Result<Candidate, String>> {
+    // Case 1 written as a box shape at dp = 1/20, 1/21, ... m (whole spacings along its 1 m
+    // length, its 0.2 m section cut where it falls), then at the paper's lattice.
+    let case1 = |dp: f64, shape: bool| -> Box<dyn Fn() -> Result<Candidate, String>> {
         Box::new(move || {
-            let r = report::case1(dp, so, None, |_| {})?;
+            let scene = if shape {
+                case1_shape_scene(dp)
+            } else {
+                case1_scene(dp, so, None)
+            };
+            let r = report::case1_of(&scene, |_| {})?;
             Ok((
-                format!("dp {dp} m"),
+                if shape {
+                    format!("dp 1/{:.0} m, a box shape", 1.0 / dp)
+                } else {
+                    format!("dp {dp} m")
+                },
                 r.run.particles,
                 format!("u_x {}, u_z {}", pct(r.error_ux_fem), pct(r.error_uz_fem)),
                 r.error_ux_fem.abs().max(r.error_uz_fem.abs()),
-                case1_scene(dp, so, None),
+                scene,
             ))
         })
     };
@@ -222,7 +236,10 @@ pub fn real_time_rows() -> Result<Vec<RealTimeRow>, String> {
     Ok(vec![
         first_within(
             "case 1: column under its own weight",
-            vec![case1(0.05), case1(0.025)],
+            (20..40)
+                .map(|n| case1(1.0 / n as f64, true))
+                .chain([case1(0.025, false)])
+                .collect(),
         )?,
         first_within(
             "case 2: clamped-pinned beam",

@@ -157,8 +157,13 @@ pub fn case1(
     dt: Option<f64>,
     on_sample: impl FnMut(f64),
 ) -> Result<Case1Report, String> {
-    let scene = case1_scene(dp, model, dt);
-    let r = run_scene(&scene, on_sample)?;
+    case1_of(&case1_scene(dp, model, dt), on_sample)
+}
+
+/// Runs a scene of case 1 (probes at the stations of `case1_scene`) and compares.
+pub fn case1_of(scene: &Scene, on_sample: impl FnMut(f64)) -> Result<Case1Report, String> {
+    let (dp, model) = (scene.particle_spacing, scene.solver.model);
+    let r = run_scene(scene, on_sample)?;
     let fem = case1_fem_line();
     let stations: Vec<Station> = CASE1_STATIONS
         .iter()

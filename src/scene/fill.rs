@@ -241,7 +241,7 @@ fn cut_cell(g: &Geometry, c: [f64; 3], dp: f64, d: usize) -> CutCell {
 /// The solid's bounds when it is one axis-aligned box: its parts are boxes, nothing is cut,
 /// and they cover their bounds (every cell of the grid of their faces' coordinates lies in
 /// one of them).
-fn one_box(g: &Geometry, d: usize) -> Option<([f64; 3], [f64; 3])> {
+pub(crate) fn one_box(g: &Geometry, d: usize) -> Option<([f64; 3], [f64; 3])> {
     if !g.cuts.is_empty() {
         return None;
     }

@@ -233,6 +233,7 @@ pub(crate) fn shape_warnings(
             out.extend(w);
         }
     }
+    out.extend(region_face_warnings(scene, k));
     let Some(vol) = volumes else {
         return out;
     };
@@ -257,6 +258,75 @@ pub(crate) fn shape_warnings(
                 "body '{}' is filled from shapes: next to its curved or cut faces its stresses are computed less accurately than in a body of boxes, so its stiffness may be off by up to about 1 % (measured on a round cantilever 4, 6 and 8 particles across: within 0.25 %; a plate with a round hole 6 particles across its ligament: end displacement 0.75 % too large); more particles across the body reduce it (particle_spacing is now {} m)",
                 b.name,
                 num(dp)
+            ),
+        });
+    }
+    out
+}
+
+/// Boundary groups of body k (a body with shapes, whose lattice is its own) whose region has a
+/// face across the body that is not on the lattice's cell faces: the group holds the particles
+/// whose centres are on its side, so its face is on the nearest cell face, up to half a spacing
+/// from where the region puts it (a clamp there lengthens or shortens the body by that much).
+fn region_face_warnings(scene: &Scene, k: usize) -> Vec<SceneWarning> {
+    let b = &scene.bodies[k];
+    let d = scene.dimension;
+    let dp = scene.particle_spacing;
+    let Ok(g) = scene.geometry(b) else {
+        return Vec::new();
+    };
+    let (lo, hi) = g.bounds();
+    let o = super::fill::lattice_origin(scene, b, &g, d);
+    // Only a box solid's centred lattice puts its cell faces off whole spacings from the
+    // body's ends, where a user writes region faces: along an axis it spans a whole number of
+    // spacings of, the cell faces are at whole spacings from its ends as on a box body's
+    // lattice (a region written with a margin inside a cell is the usual idiom there).
+    if !(b.boxes.is_empty() && super::fill::one_box(&g, d).is_some()) {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    for (gi, group) in scene.boundaries.iter().enumerate() {
+        if group.body != b.name || group.shape.is_some() {
+            continue;
+        }
+        let r = &group.region;
+        let off = (0..d).find_map(|a| {
+            let cells = (hi[a] - lo[a]) / dp;
+            if (cells - cells.round()).abs() <= 1e-9 * cells.max(1.0) {
+                return None;
+            }
+            [r.min[a], r.max[a]].into_iter().find_map(|c| {
+                let inside = c > lo[a] + 0.5 * dp && c < hi[a] - 0.5 * dp;
+                let t = (c - o[a]) / dp;
+                let face = o[a] + t.round() * dp;
+                (inside && (t - t.round()).abs() > 0.01).then_some((a, c, face))
+            })
+        });
+        let Some((a, c, face)) = off else { continue };
+        let ax = AXES[a];
+        // Lengths to six decimals (m).
+        let m = |x: f64| {
+            let t = format!("{x:.6}");
+            let t = t.trim_end_matches('0').trim_end_matches('.');
+            if t == "-0" {
+                "0".to_string()
+            } else {
+                t.to_string()
+            }
+        };
+        out.push(SceneWarning {
+            field: format!("boundaries[{gi}] ('{}')", group.name.escape_debug()),
+            message: format!(
+                "body '{}' spans {:.2} particle spacings along {ax}, not a whole number, so its particles sit centred in it and their cells' faces are not at whole spacings from its ends: the face {ax} = {} m of the region of '{}' lies inside a particle's cell, and the group holds the body from the cell face {ax} = {} m, {} m ({:.2} of a spacing) from the region's face; with whole numbers of spacings on both sides of the region's face (now {:.2} and {:.2}: choose particle_spacing, or the body's ends, so) a cell face falls on it",
+                b.name,
+                (hi[a] - lo[a]) / dp,
+                m(c),
+                group.name,
+                m(face),
+                m((face - c).abs()),
+                (face - c).abs() / dp,
+                (c - lo[a]) / dp,
+                (hi[a] - c) / dp,
             ),
         });
     }

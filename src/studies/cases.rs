@@ -351,56 +351,26 @@ pub fn case2_shape_scene(dp: f64) -> Scene {
         min: vec![x0, -e, -e],
         max: vec![x1, e, e],
     };
-    let probe = |name: &str, x: f64| Probe {
-        name: name.into(),
-        point: vec![x, 0.0, 0.0],
-        body: None,
-    };
-    Scene {
-        name: "case2_beam_shape".into(),
-        description: format!(
-            "Paper case 2 (section 3.2) written with a box shape: 1.0 m beam, 0.225 x 0.225 m section             ({:.3} particle spacings), rho 1000, E 6 MPa, nu 0.3, clamped by the layers before x = 0,             supported (y, z held) by the layers beyond x = L, gravity -z applied suddenly at t = 0.",
-            2.0 * h / dp
-        ),
-        dimension: 3,
-        particle_spacing: dp,
-        solver: SolverOptions::default(),
-        gravity: Gravity { vector: vec![0.0, 0.0, -G], paper_ramp_period: None },
-        bodies: vec![Body {
-            name: "beam".into(),
-            material: CASE2_MATERIAL,
-            boxes: vec![],
-            velocity: None,
-            shapes: vec![crate::scene::shape::Shape::Box(bx(-w, l + w, h))],
-            cuts: vec![],
-        }],
-        boundaries: vec![
-            Boundary {
-                name: "clamp".into(),
-                kind: BoundaryKind::Clamped,
-                body: "beam".into(),
-                region: bx(-2.0 * w, 0.0, 2.0 * h),
-                axes: None,
-                mirror: None,
-                shape: None,
-            },
-            Boundary {
-                name: "support".into(),
-                kind: BoundaryKind::Pinned,
-                body: "beam".into(),
-                region: bx(l, l + 2.0 * w, 2.0 * h),
-                axes: Some(vec!["y".into(), "z".into()]),
-                mirror: None,
-                shape: None,
-            },
-        ],
-        loads: vec![],
-        probes: vec![probe("max", 0.56), probe("mid", 0.5)],
-        end_time: 0.6,
-        output_interval: 0.001,
-        analysis: Some(Analysis { probe: "max".into(), component: "z".into() }),
-        base_dir: None,
+    let mut s = case2_scene(dp, ElasticModel::SecondOrder, None, Support::Face);
+    s.name = "case2_beam_shape".into();
+    s.description = format!(
+        "Paper case 2 (section 3.2) written with a box shape: 1.0 m beam, 0.225 x 0.225 m section \
+        ({:.3} particle spacings), rho 1000, E 6 MPa, nu 0.3, clamped by the layers before x = 0, \
+        supported (y, z held) by the layers beyond x = L, gravity -z applied suddenly at t = 0.",
+        2.0 * h / dp
+    );
+    s.solver = SolverOptions::default();
+    s.bodies[0].boxes.clear();
+    s.bodies[0].shapes = vec![crate::scene::shape::Shape::Box(bx(-w, l + w, h))];
+    for (b, region) in s
+        .boundaries
+        .iter_mut()
+        .zip([bx(-2.0 * w, 0.0, 2.0 * h), bx(l, l + 2.0 * w, 2.0 * h)])
+    {
+        b.region = region;
+        b.mirror = None;
     }
+    s
 }
 
 /// Euler-Bernoulli first frequency of the clamped-pinned beam (Hz).

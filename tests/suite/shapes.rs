@@ -968,14 +968,25 @@ fn snapshots_and_surface_meshes_show_the_shapes() {
         .unwrap();
 }
 
-/// The linearised first frequency and static tip deflection of a family case against its
-/// FEM reference (relative errors).
-fn family_errors(case: &mps_solid::studies::family::FamilyCase) -> (f64, f64) {
+/// Asserts the linearised first frequency and static tip deflection of a family case within
+/// `f1` and `tip` (relative) of its FEM reference, printing both.
+fn assert_family_within(case: &mps_solid::studies::family::FamilyCase, f1: f64, tip: f64) {
     let b = mps_solid::studies::bending::linear_bending(&case.scene).unwrap();
-    (
+    let (ef, eu) = (
         b.f1 / case.reference.f1 - 1.0,
         b.tip / case.reference.static_u - 1.0,
-    )
+    );
+    eprintln!(
+        "{}: f1 {:+.3} %, static {:+.3} %",
+        case.name,
+        100.0 * ef,
+        100.0 * eu
+    );
+    assert!(
+        ef.abs() < f1 && eu.abs() < tip,
+        "{}: f1 {ef:+.5}, static {eu:+.5}",
+        case.name
+    );
 }
 
 #[test]
@@ -989,21 +1000,9 @@ fn a_box_given_as_a_shape_bends_as_the_box_wherever_it_sits() {
     // the section (static deflection +55.8 %, f1 -19.8 %).
     use mps_solid::studies::family::shape_written;
     for (across, offset) in [(5.0, 0.0), (4.0, 0.3)] {
-        let case = shape_written(2, across, offset);
-        let (ef, eu) = family_errors(&case);
-        eprintln!(
-            "{}: f1 {:+.3} %, static {:+.3} %",
-            case.name,
-            100.0 * ef,
-            100.0 * eu
-        );
         // The box body's own figures (-0.017 / +0.030 % at 5 across, -0.008 / +0.003 % at 4)
         // and at most 0.1 %: the closure's accuracy on one box (docs/model.md).
-        assert!(
-            ef.abs() < 1e-3 && eu.abs() < 1e-3,
-            "{}: f1 {ef:+.5}, static {eu:+.5}",
-            case.name
-        );
+        assert_family_within(&shape_written(2, across, offset), 1e-3, 1e-3);
     }
 }
 
@@ -1026,23 +1025,12 @@ fn a_box_shape_whose_sides_cut_cells_is_closed_at_its_faces() {
             case.name,
             w.world.closure
         );
-        let (ef, eu) = family_errors(&case);
-        eprintln!(
-            "{}: f1 {:+.3} %, static {:+.3} %",
-            case.name,
-            100.0 * ef,
-            100.0 * eu
-        );
         // Measured +0.105 / -0.209 % (faces a quarter spacing out) and -0.010 / +0.015 %
         // (0.7 out): the discretisation error of 8 to 9 particles through a bent section with
         // its faces off the cell faces, within issue 24's 0.15 % in f1 at 8 across and, in the
         // deflection, twice it (the quarter-spacing faces converge at first order: 0.42, 0.21,
         // 0.09 % at 4.5, 8.5, 16.5 across).
-        assert!(
-            ef.abs() < 1.5e-3 && eu.abs() < 3e-3,
-            "{}: f1 {ef:+.5}, static {eu:+.5}",
-            case.name
-        );
+        assert_family_within(&case, 1.5e-3, 3e-3);
     }
 }
 

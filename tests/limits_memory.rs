@@ -143,7 +143,7 @@ fn a_170_cube_is_refused_at_once_by_the_default_limit() {
 fn second_order_needs_at_most_3_kb_per_particle_in_3d_and_the_estimate_bounds_every_stage() {
     // Issue 25: at most 3 kB per particle in 3D for the default operator at re = 2.1 dp, the
     // peak over the whole build (closure included) and a few steps with the strain energy
-    // query of the outputs. Size: the closure solves on a reduced box of at most 17^3
+    // query of the outputs. Size: the closure solves on a reduced box of at most 15^3
     // particles whatever the body's size, a fixed cost of about 40 MB (BENCHMARKS.md "Issue
     // 25: memory") on top of 1.7 kB per particle, which makes the closure the peak of a 30^3
     // cube (3.2 kB per particle there). From about 32^3 on, the peak is the first stable-step

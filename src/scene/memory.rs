@@ -31,14 +31,14 @@ const BOND_BYTES: [u64; 2] = [32, 40];
 const SECOND_ORDER_BASE_BYTES: [u64; 2] = [400, 800];
 const SECOND_ORDER_BOND_BYTES: [u64; 2] = [49, 66];
 /// The summation-by-parts closure of a second_order body (src/physics/sbp/) builds the operator
-/// once more on a reduced box of at most 17 layers a side during the build, with its
+/// once more on a reduced box of at most 15 layers a side (17 before 2026-12-06) during the build, with its
 /// conjugate-gradient systems: `CLOSURE_BOX_BYTES` per particle of the reduced box (min of the
-/// body's particles and 17^D), on top of `CLOSURE_SHARE` of the per-particle cost of the whole
+/// body's particles and 15^D), on top of `CLOSURE_SHARE` of the per-particle cost of the whole
 /// world for what the body holds by then (bonds, fits). Measured in 3D at re = 2.1 dp: 1,700 B
 /// per particle plus 39.6 MB (8.06 kB per box particle) from the 25^3 and 30^3 cubes, whose
 /// peak is the closure. 2D: the figure measured before issue 25 (31 kB per box particle),
 /// an upper bound not measured again (the 2D box has at most 289 particles).
-const CLOSURE_LAYERS: f64 = 17.0;
+const CLOSURE_LAYERS: f64 = 15.0;
 const CLOSURE_BOX_BYTES: [f64; 2] = [31_000.0, 8_500.0];
 const CLOSURE_SHARE: f64 = 0.62;
 /// Fixed cost of a world whatever its size (bytes).

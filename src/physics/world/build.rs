@@ -628,7 +628,7 @@ where
 /// seconds with 80 power iterations; the stable step's Lanczos measurement takes 21 force
 /// evaluations where those took 81, so 13), rounded up. The closure's 60 is far below what a bulky clamped body's closure
 /// takes (500-800 bonds-stage seconds for a 15^3 cube or small3d at 0.00625 m: its solves run
-/// on a box of at most 17 layers per axis, so no per-bond figure prices them); its solves
+/// on a box of at most 15 layers per axis, so no per-bond figure prices them); its solves
 /// check the bound themselves (`sbp::close`).
 const SECOND_ORDER_FITS: f64 = 10.0;
 const SECOND_ORDER_CLOSURE: f64 = 60.0;

@@ -555,7 +555,7 @@ where
             clamped.insert((si, a, out[a].signum() as i8));
         }
     }
-    let sys = NullSpaceConstraints::new(&vb, &row_gram, l0, D + 1, tie);
+    let sys = NullSpaceConstraints::new(&vb, &row_gram, l0, D + 1, tie, &vx, stop);
     let nb = vb.len();
     let mut figures = Vec::new();
     let mut targets = Vec::with_capacity(D);

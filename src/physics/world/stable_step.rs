@@ -90,7 +90,7 @@ where
     /// from the translated or rotated vector and measures the same omega_max to round-off.
     /// Rotations only for the paper models (the others carry none).
     #[allow(clippy::type_complexity)]
-    pub(super) fn start_vector(&self) -> (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) {
+    pub fn start_vector(&self) -> (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) {
         let n = self.len();
         let coef = |i: usize, j: u32, salt: u64| -> f64 {
             let mut z = ((i as u64) << 32 | j as u64) ^ salt;
@@ -140,9 +140,19 @@ where
     /// far fewer evaluations (the top of a particle model's spectrum is dense: 80 power
     /// iterations left omega 0.5 % short in 3D). Constrained degrees of freedom are excluded.
     pub(super) fn lanczos_omega_max(&self, iterations: usize) -> f64 {
+        self.lanczos_omega_max_from(iterations, self.start_vector())
+    }
+
+    /// [`World::lanczos_omega_max`] from the start vector `start` (translations, rotations).
+    #[allow(clippy::type_complexity)]
+    pub fn lanczos_omega_max_from(
+        &self,
+        iterations: usize,
+        start: (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>),
+    ) -> f64 {
         let n = self.len();
         let mut op = LinearProbe::new(self, false);
-        let (mut vt, mut vr) = self.start_vector();
+        let (mut vt, mut vr) = start;
         op.mask(&self.p, &mut vt, &mut vr);
         let nv = op.norm_m(&self.p, &vt, &vr);
         if nv == 0.0 {
@@ -213,6 +223,21 @@ where
             .iter()
             .fold(0.0f64, |m, &v| m.max(v));
         top.sqrt()
+    }
+
+    /// The stiffest mode of the reference state (diagnostics: where the stable step is set):
+    /// omega (rad/s) and the translations of `iterations` power iterations from the
+    /// deterministic start vector, normalised in the mass norm.
+    pub fn stiffest_mode(&self, iterations: usize) -> (f64, Vec<Vect<D>>) {
+        let n = self.len();
+        let (omega, t, _) = self.measure_omega_max(
+            iterations,
+            (
+                &vec![Vect::<D>::zeros(); n],
+                &vec![<Space as Dim<D>>::ang_zero(); n],
+            ),
+        );
+        (omega, t)
     }
 
     /// Largest eigenvalue of M^-1 K about the current state (its tangent stiffness: geometric

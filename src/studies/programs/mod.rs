@@ -13,6 +13,7 @@ pub mod fold;
 pub mod fracture;
 pub mod fracture_energy_dt;
 pub mod ghost;
+pub mod stiffest;
 pub mod throughput;
 pub mod torsion;
 
@@ -30,6 +31,7 @@ pub const PROGRAMS: &[(&str, &str)] = &[
     ("fracture", "case 3's largest bond strain over time for the corrected and second-order operators"),
     ("fracture_energy_dt", "whether breaks create energy at time steps below the automatic one"),
     ("ghost", "mirror faces against the grip on the axial bar, plate and cantilever"),
+    ("stiffest", "where the stiffest mode of case 1, case 2 or the cantilever sits: the place that sets the stable step (`-- case1 second_order 400`)"),
     ("throughput", "single-thread force-loop throughput of each operator on case 2 (pair-updates/s)"),
     ("torsion", "first torsion frequency of the slender cantilever near incompressibility"),
 ];
@@ -72,6 +74,9 @@ pub fn run(name: &str, args: Vec<String>) -> Result<(), String> {
         }
         "ghost" => {
             ghost::main(args);
+        }
+        "stiffest" => {
+            stiffest::main(args);
         }
         "throughput" => {
             throughput::main(args);

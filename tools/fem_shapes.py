@@ -42,9 +42,12 @@ Usage:
   nice .venv-fem/bin/python tools/fem_shapes.py stepped2d      # one geometry
   nice .venv-fem/bin/python tools/fem_shapes.py all --quick    # coarse smoke run with the
                                                                # self-checks; writes only with --out-dir
+  nice .venv-fem/bin/python tools/fem_shapes.py all --uniform 2 4 8 16   # the re-entrant
+      # geometries on uniform meshes against the references (what a uniform resolution reaches)
 """
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -1251,13 +1254,54 @@ def run(what, quick, out_dir):
     raise ValueError(what)
 
 
+# The re-entrant geometries whose references come from graded meshes, with the quantities
+# compared by `--uniform`.
+UNIFORM_CASES = {
+    "stepped2d": ("stepped_cantilever2d_fem.json", "stepped2d_level", ["f1_hz", "static_tip_uy_m"]),
+    "stepped3d": ("stepped_cantilever3d_fem.json", "stepped3d_level", ["f1_hz", "static_tip_uz_m"]),
+    "lbracket": ("l_bracket2d_fem.json", "lbracket_level",
+                 ["f1_hz", "end_load_static_uy_m", "gravity_static_uy_m"]),
+    "recthole": ("plate_rect_hole2d_fem.json", "recthole_level", ["f1_hz", "static_end_uy_m"]),
+}
+
+
+def run_uniform(what, levels):
+    """The same elements on uniform meshes (no grading towards the clamp or the re-entrant
+    corners) at the given levels, against the stored converged references: what a uniform
+    resolution can reach where the field is singular (issue 24: the particle lattice is
+    uniform). Prints one line per geometry and level; writes nothing."""
+    global G_CLAMP, G_CORNER
+    G_CLAMP, G_CORNER = 1.0, 1.0
+    for name in (list(UNIFORM_CASES) if what == "all" else [what]):
+        if name not in UNIFORM_CASES:
+            continue
+        path, fn, keys = UNIFORM_CASES[name]
+        with open(os.path.join(REPO, "reference", path)) as f:
+            conv = json.load(f)["converged"]["quantities"]
+        for n in levels:
+            # Level n: n elements across the thinnest section (0.05 m); the 3D stepped
+            # cantilever's level counts them across its half (0.025 m).
+            if name == "stepped3d" and (n % 2 or n > 8):
+                print(f"uniform {name} n={n}: skipped (odd, or too large for the direct solve)")
+                continue
+            r = globals()[fn](n // 2 if name == "stepped3d" else n, False)
+            errs = "  ".join(f"{k} {100 * (r[k] / conv[k]['value'] - 1):+.3f} %" for k in keys)
+            print(f"uniform {name} n={n}: {errs}", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("what", choices=list(LEVELS) + ["all"])
+    ap.add_argument("--uniform", type=int, nargs="+", metavar="N",
+                    help="only the uniform (ungraded) meshes of the re-entrant geometries at "
+                         "these levels against the stored references (no files written)")
     ap.add_argument("--quick", action="store_true", help="coarse levels and self-checks (smoke run)")
     ap.add_argument("--out-dir", help="directory for the JSON files; without it only a full run "
                                       "writes, into reference/")
     args = ap.parse_args(argv)
+    if args.uniform:
+        run_uniform(args.what, args.uniform)
+        return 0
     out_dir = args.out_dir or (None if args.quick else os.path.join(REPO, "reference"))
     todo = list(LEVELS) if args.what == "all" else [args.what]
     for w in todo:

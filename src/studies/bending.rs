@@ -278,17 +278,23 @@ pub fn linear_bending(scene: &Scene) -> Result<LinearBending, SceneError> {
 /// no singular corner, so the operator's own order of convergence shows), by shifted inverse
 /// iteration with the three rigid motions projected out. A zero-energy (hourglass) mode would
 /// come out as a frequency near zero.
-#[allow(clippy::needless_range_loop)]
 pub fn free_free_plate_f1(n: usize, model: ElasticModel) -> Result<f64, SceneError> {
-    let e = |m: String| SceneError {
-        field: String::new(),
-        message: m,
-    };
     let mut s = plate2d_scene(n, model);
     s.boundaries.clear();
     s.bodies[0].boxes.truncate(1);
     s.probes[0].point = vec![0.1, 0.0];
-    let model = Model::<2>::build(&s)?;
+    free_free_f1(&s)
+}
+
+/// The lowest flexural frequency (Hz) of a free 2D scene's body (no boundaries): inverse
+/// iteration with the rigid motions deflated, from a bending-like start.
+#[allow(clippy::needless_range_loop)]
+pub fn free_free_f1(s: &Scene) -> Result<f64, SceneError> {
+    let e = |m: String| SceneError {
+        field: String::new(),
+        message: m,
+    };
+    let model = Model::<2>::build(s)?;
     let w = &model.world;
     let np = w.len();
     let m = &w.p.mass;

@@ -5,10 +5,13 @@
 //! displacement whose stress is quadratic (the shear parabola, traction-free on the faces) with
 //! no body force, so the residual K u* per particle is the particle quadrature's error for a
 //! quadratic stress (the closure is exact for linear ones). Printed in units of the largest shear
-//! stress times the cell (tau_max l0 per unit depth), down a column of particles at mid-span.
+//! stress times the cell (tau_max l0 per unit depth), summed over columns of particles along the
+//! plate (the columns next to the clamp and the loaded end also carry those boundaries' terms).
 //!
 //! `cargo run --release -- study cutface [n] [extra...]` (default 8, extras 0, 0.25, 0.5, 0.7);
-//! `-- free [n...]`: the free-free plate's f1, aligned (n across) against n + 1/2 across.
+//! `-- free [n...]`: the free-free plate's f1, aligned (n across) against n + 1/2 across;
+//! `-- walls`: the clamped plate with 3 or 5 wall layers; `-- nu NU`: the clamped plate at
+//! Poisson's ratio NU, aligned against n + 1/2 (self-convergence).
 use crate::physics::Vect;
 use crate::scene::Model;
 use crate::studies::family::shape_written;
@@ -35,7 +38,54 @@ fn free_free(ns: &[f64]) {
     }
 }
 
+/// The clamped plate written as a box shape `across` thick with `walls` wall layers in the
+/// solid behind the clamped face: f1 and static tip errors against the FEM.
+fn clamped(walls: f64, across: f64) {
+    let case = shape_written(2, across, 0.0);
+    let mut s = case.scene;
+    let dp = s.particle_spacing;
+    if let crate::scene::shape::Shape::Box(r) = &mut s.bodies[0].shapes[0] {
+        r.min[0] = -walls * dp;
+    }
+    s.boundaries[0].region.min[0] = -walls * dp;
+    let b = crate::studies::bending::linear_bending(&s).unwrap();
+    println!(
+        "  {across} across, {walls} wall layers: f1 {:+.4} %, static {:+.4} %",
+        100.0 * (b.f1 / case.reference.f1 - 1.0),
+        100.0 * (b.tip / case.reference.static_u - 1.0)
+    );
+}
+
+/// The clamped plate at Poisson's ratio `nu`, aligned (n across) and cut (n + 1/2): f1 (Hz)
+/// and static tip (m), for self-convergence where no reference exists.
+fn clamped_nu(nu: f64, ns: &[f64]) {
+    println!("clamped plate at nu = {nu}: f1 (Hz), static tip (m); aligned n | n + 1/2");
+    for &n in ns {
+        let mut line = format!("  n = {n:4}:");
+        for across in [n, n + 0.5] {
+            let mut s = shape_written(2, across, 0.0).scene;
+            s.bodies[0].material.poisson = nu;
+            let b = crate::studies::bending::linear_bending(&s).unwrap();
+            line += &format!("  {:.9} {:.9e}", b.f1, b.tip);
+        }
+        println!("{line}");
+    }
+}
+
 pub fn main(args: Vec<String>) {
+    if args.get(1).map(String::as_str) == Some("nu") {
+        let nu: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(0.0);
+        clamped_nu(nu, &[4.0, 8.0, 16.0]);
+        return;
+    }
+    if args.get(1).map(String::as_str) == Some("walls") {
+        for across in [4.5, 8.5, 4.0, 8.0] {
+            for walls in [3.0, 5.0] {
+                clamped(walls, across);
+            }
+        }
+        return;
+    }
     if args.get(1).map(String::as_str) == Some("free") {
         let ns: Vec<f64> = args[2..].iter().filter_map(|s| s.parse().ok()).collect();
         free_free(if ns.is_empty() {

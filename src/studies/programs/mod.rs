@@ -25,7 +25,7 @@ pub const PROGRAMS: &[(&str, &str)] = &[
     ("clamp", "a clamped axial bar under its weight (exact quadratic field): computed against exact displacement"),
     ("closure", "the summation-by-parts closure's build: CG iterations, residuals and time per axis (`-- cube N`)"),
     ("consistency", "case 1's exact field against the discrete equilibrium: residual forces by layer"),
-    ("cutface", "the end-loaded cantilever's exact field (quadratic stress) on the GMS plate written as a box shape n + extra thick: residual forces by layer (`-- 8 0 0.25 0.5`)"),
+    ("cutface", "the GMS plate written as a box shape with its faces cutting cells: residuals of a quadratic stress (`-- 8 0 0.5`), free-free f1 (`-- free`), wall layers (`-- walls`), another Poisson ratio (`-- nu 0`)"),
     ("elastica", "large deflection of the slender cantilever against the elastica and the finite-strain FEM"),
     ("family", "issue 24's family written as a user would (clamps without mirror, stepped, L-bracket, hole): linearised f1 and static deflection against the FEM (`-- 4 8`, THREE_D=1 adds 3D)"),
     ("floor", "the machine's floor: multiply-add peak, triad bandwidth, and the least time per bond of each force pass"),

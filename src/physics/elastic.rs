@@ -29,6 +29,11 @@ pub struct ElasticOperator<const D: usize> {
     pub laws: Vec<MaterialLaw>,
     /// Corrected model: inverse shape tensor K_i^-1 with K_i = sum_j w0/|r0|^2 r0 r0^T.
     pub k_inv: Vec<Mat<D>>,
+    /// Corrected and paper models: 1 / |r0|^2 of each directed bond (1/m^2), fixed as the
+    /// reference vectors are, so that the force passes divide by nothing per bond (issue 25:
+    /// two divisions per bond were about a third of the corrected operator's step). Empty for
+    /// the second-order model, whose stencils carry their own.
+    pub inv_r02: Vec<f64>,
     /// Corrected model: projector K_i^+ K_i on the span of the intact bonds of particle i; exactly
     /// the identity for a full neighbourhood. The Green strain is measured in this span only,
     /// (F^T F - P) / 2, so a particle left with bonds along one line or plane after fracture
@@ -105,6 +110,7 @@ where
             lame: materials.iter().map(|m| (m.mu(), m.lambda())).collect(),
             laws: materials.iter().map(|m| m.law).collect(),
             k_inv: Vec::new(),
+            inv_r02: Vec::new(),
             span: Vec::new(),
             vol: vec![l0.powi(D as i32); n_particles],
             base_vol: vec![l0.powi(D as i32); n_particles],
@@ -125,6 +131,7 @@ where
                 walls,
             );
         } else {
+            op.inv_r02 = bonds.r0.iter().map(|r| 1.0 / r.norm_squared()).collect();
             (op.k_inv, op.span) = (0..n_particles)
                 .map(|i| op.shape_inverse_span(bonds, i))
                 .unzip();
@@ -275,7 +282,6 @@ where
         let n = p.len();
         s.defgrad.resize(n, Mat::<D>::identity());
         s.bmat.resize(n, Mat::<D>::zeros());
-        let v = self.volume;
         // Pass 1: F_i = (sum_j w r_ij r0_ij^T / |r0|^2) K_i^-1 (exact for affine motion), Green
         // strain E = (F^T F - I) / 2, the law's second Piola-Kirchhoff stress S (Saint
         // Venant-Kirchhoff S = 2 mu E + lambda tr(E) I, Eqs. (6)-(7) in the small-strain limit,
@@ -285,53 +291,13 @@ where
             .zip(par_iter_mut!(s.collapsed))
             .enumerate()
             .for_each(|(i, ((f_out, b_out), c_out))| {
-                let f = self.corrected_defgrad(p, bonds, i);
-                let body = p.body[i] as usize;
-                let (mu, lambda) = self.lame[body];
-                let law = self.laws[body];
-                let e = (f.transpose() * f - self.span[i]) * 0.5;
-                let stress = match law.stress(&e, mu, lambda) {
-                    // An inverted particle (det F <= 0) of a full neighbourhood has the same C
-                    // as a mirrored one: only F sees it.
-                    Some(s)
-                        if law == MaterialLaw::SaintVenantKirchhoff
-                            || self.span[i] != Mat::<D>::identity()
-                            || law::det(&f) > 0.0 =>
-                    {
-                        *c_out = 0;
-                        s
-                    }
-                    _ => {
-                        *c_out = 1;
-                        Mat::<D>::zeros()
-                    }
-                };
-                *b_out = ((f * stress * self.k_inv[i]) * self.vol[i] - f * (self.kappa(mu) * v))
-                    * self.retained[i];
-                *f_out = f;
+                corrected_pass1_particle(self, p, bonds, i, f_out, b_out, c_out)
             });
         let bm = &s.bmat;
-        // Pass 2: f_i = -dE/dx_i = sum_j w/|r0|^2 [(B_i + B_j) r0_ij + (s_i + s_j) kappa V r_ij]
-        // with s the retained shares (B carries its particle's share).
-        let share = &self.retained;
-        par_iter_mut!(force).enumerate().for_each(|(i, f_out)| {
-            let ui = p.u[i];
-            let bi = bm[i];
-            let kv = self.kappa(self.lame[p.body[i] as usize].0) * v;
-            let mut acc = Vect::<D>::zeros();
-            for b in bonds.of(i) {
-                let w0 = bonds.w0[b];
-                if w0 == 0.0 {
-                    continue;
-                }
-                let j = bonds.nbr[b] as usize;
-                let r0 = bonds.r0[b];
-                let om = w0 / r0.norm_squared();
-                acc +=
-                    ((bi + bm[j]) * r0 + (r0 + (p.u[j] - ui)) * ((share[i] + share[j]) * kv)) * om;
-            }
-            *f_out = acc;
-        });
+        // Pass 2: f_i = -dE/dx_i (`corrected_pass2_particle`).
+        par_iter_mut!(force)
+            .enumerate()
+            .for_each(|(i, f_out)| *f_out = corrected_pass2_particle(self, p, bonds, bm, i));
         torque
             .iter_mut()
             .for_each(|t| *t = <Space as Dim<D>>::ang_zero());
@@ -345,37 +311,12 @@ where
         force: &mut [Vect<D>],
         torque: &mut [<Space as Dim<D>>::Ang],
     ) {
-        let n = p.len();
-        s.pressure.resize(n, 0.0);
-        let d = D as f64;
-        let local = self.model == ElasticModel::PaperLocal;
-        let nd = |i: usize| if local { p.n_ref[i] } else { self.n0 };
+        s.pressure.resize(p.len(), 0.0);
         // Pass 1: volumetric strain from the bond stretches, Eq. (26), and pressure, Eq. (29).
         par_iter_mut!(s.pressure)
             .enumerate()
-            .for_each(|(i, p_out)| {
-                let ui = p.u[i];
-                let mut sum = 0.0;
-                for b in bonds.of(i) {
-                    let w0 = bonds.w0[b];
-                    if w0 == 0.0 {
-                        continue;
-                    }
-                    let r0 = bonds.r0[b];
-                    // (|r| - l0) / l0 with one square root.
-                    let r2 = (r0 + (p.u[bonds.nbr[b] as usize] - ui)).norm_squared();
-                    sum += w0 * ((r2 / r0.norm_squared()).sqrt() - 1.0);
-                }
-                // A particle without bonds (n_i = 0 in the local model) has no volumetric
-                // strain: sum = 0, and 0 / 0 must not make its pressure NaN.
-                *p_out = if sum == 0.0 {
-                    0.0
-                } else {
-                    -self.lame[p.body[i] as usize].1 * d / nd(i) * sum
-                };
-            });
+            .for_each(|(i, p_out)| *p_out = paper_pass1_particle(self, p, bonds, i));
         let pr = &s.pressure;
-        let v = self.volume;
         // Pass 2: Eqs. (13)-(14) relative displacement with the pair rotation, (27)-(28) spring
         // stress, (30)-(31) translation, (32)-(33) pressure (with the sign of -grad p), (34)-(35)
         // moments.
@@ -383,32 +324,7 @@ where
             .zip(par_iter_mut!(torque))
             .enumerate()
             .for_each(|(i, (f_out, t_out))| {
-                let ui = p.u[i];
-                let qi = p.q[i];
-                let c = 2.0 * d / nd(i) * v;
-                let mu2 = 2.0 * self.lame[p.body[i] as usize].0;
-                let mut acc = Vect::<D>::zeros();
-                let mut mom = <Space as Dim<D>>::ang_zero();
-                for b in bonds.of(i) {
-                    let w0 = bonds.w0[b];
-                    if w0 == 0.0 {
-                        continue;
-                    }
-                    let j = bonds.nbr[b] as usize;
-                    let r0 = bonds.r0[b];
-                    let l02 = r0.norm_squared();
-                    let rij = r0 + (p.u[j] - ui);
-                    let u = rij - <Space as Dim<D>>::rotate_midpoint(&qi, &p.q[j], &r0);
-                    let fs = u * (c * mu2 * w0 / l02);
-                    let rn = (l02 * rij.norm_squared()).sqrt();
-                    acc += fs + rij * (-c * 0.5 * (pr[i] + pr[j]) * w0 / rn);
-                    mom = <Space as Dim<D>>::ang_add(
-                        mom,
-                        <Space as Dim<D>>::cross(&(rij * 0.5), &fs),
-                    );
-                }
-                *f_out = acc;
-                *t_out = mom;
+                (*f_out, *t_out) = paper_pass2_particle(self, p, bonds, pr, i)
             });
     }
 
@@ -436,7 +352,7 @@ where
         let ui = p.u[i];
         for b in bonds.of(i) {
             let r0 = bonds.r0[b];
-            let om = bonds.w0[b] / r0.norm_squared();
+            let om = bonds.w0[b] * self.inv_r02[b];
             let res = (r0 + (p.u[bonds.nbr[b] as usize] - ui)) - f * r0;
             total += 0.5 * kv * om * res.norm_squared();
         }
@@ -447,20 +363,22 @@ where
     /// the current positions (exact for affine motion).
     #[inline(always)]
     fn corrected_defgrad(&self, p: &Particles<D>, bonds: &Bonds<D>, i: usize) -> Mat<D> {
+        // F = (K + sum_j w/|r0|^2 (u_j - u_i) r0^T) K^-1 = P + H K^-1 with P the span
+        // projector: the identity at rest exactly, and F - P free of the cancellation of
+        // K K^-1 against I. A broken bond (w0 = 0) adds zeros.
         let ui = p.u[i];
-        let mut g = Mat::<D>::zeros();
-        for b in bonds.of(i) {
-            let w0 = bonds.w0[b];
-            if w0 == 0.0 {
-                continue;
-            }
-            let r0 = bonds.r0[b];
-            let om = w0 / r0.norm_squared();
-            // r = r0 + (u_j - u_i): at rest exactly r0, so G = K bit for bit.
-            let r = r0 + (p.u[bonds.nbr[b] as usize] - ui);
-            g += (r * om) * r0.transpose();
+        let mut h = Mat::<D>::zeros();
+        let range = bonds.of(i);
+        for (((&j, r0), &w0), &inv) in bonds.nbr[range.clone()]
+            .iter()
+            .zip(&bonds.r0[range.clone()])
+            .zip(&bonds.w0[range.clone()])
+            .zip(&self.inv_r02[range])
+        {
+            let du = p.u[j as usize] - ui;
+            h += (du * (w0 * inv)) * r0.transpose();
         }
-        g * self.k_inv[i]
+        self.span[i] + h * self.k_inv[i]
     }
 
     /// Energy of particle i (J) at the current positions with its current weights and
@@ -544,4 +462,210 @@ where
         }
         total
     }
+}
+
+/// Pass 1 of the corrected operator for particle i: F_i, the stress and B_i (compiled also for
+/// AVX-512 and AVX2 and chosen at run time, as the second-order passes; no fused operations,
+/// so every version gives the same bits).
+#[cfg_attr(
+    not(fuzzing),
+    multiversion::multiversion(
+        targets(
+            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+            "x86_64+avx2+fma"
+        ),
+        dispatcher = "direct"
+    )
+)]
+fn corrected_pass1_particle<const D: usize>(
+    op: &ElasticOperator<D>,
+    p: &Particles<D>,
+    bonds: &Bonds<D>,
+    i: usize,
+    f_out: &mut Mat<D>,
+    b_out: &mut Mat<D>,
+    c_out: &mut u8,
+) where
+    Space: Dim<D>,
+{
+    let v = op.volume;
+    let f = op.corrected_defgrad(p, bonds, i);
+    let body = p.body[i] as usize;
+    let (mu, lambda) = op.lame[body];
+    let law = op.laws[body];
+    let e = (f.transpose() * f - op.span[i]) * 0.5;
+    let stress = match law.stress(&e, mu, lambda) {
+        // An inverted particle (det F <= 0) of a full neighbourhood has the same C
+        // as a mirrored one: only F sees it.
+        Some(s)
+            if law == MaterialLaw::SaintVenantKirchhoff
+                || op.span[i] != Mat::<D>::identity()
+                || law::det(&f) > 0.0 =>
+        {
+            *c_out = 0;
+            s
+        }
+        _ => {
+            *c_out = 1;
+            Mat::<D>::zeros()
+        }
+    };
+    *b_out = ((f * stress * op.k_inv[i]) * op.vol[i] - f * (op.kappa(mu) * v)) * op.retained[i];
+    *f_out = f;
+}
+
+/// Pass 2 of the corrected operator for particle i: f_i = -dE/dx_i = sum_j w/|r0|^2 [(B_i +
+/// B_j) r0_ij + (s_i + s_j) kappa V r_ij] with s the retained shares (B carries its particle's
+/// share). B_i's part is B_i sum_j w/|r0|^2 r0_ij, added once after the loop (zero for a
+/// symmetric neighbourhood); a broken bond has w0 = 0 and adds zeros, without a branch.
+/// Compiled as pass 1.
+#[cfg_attr(
+    not(fuzzing),
+    multiversion::multiversion(
+        targets(
+            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+            "x86_64+avx2+fma"
+        ),
+        dispatcher = "direct"
+    )
+)]
+fn corrected_pass2_particle<const D: usize>(
+    op: &ElasticOperator<D>,
+    p: &Particles<D>,
+    bonds: &Bonds<D>,
+    bm: &[Mat<D>],
+    i: usize,
+) -> Vect<D>
+where
+    Space: Dim<D>,
+{
+    let share = &op.retained;
+    let ui = p.u[i];
+    let si = share[i];
+    let kv = op.kappa(op.lame[p.body[i] as usize].0) * op.volume;
+    let mut acc = Vect::<D>::zeros();
+    let mut moment = Vect::<D>::zeros();
+    let range = bonds.of(i);
+    for (((&j, r0), &w0), &inv) in bonds.nbr[range.clone()]
+        .iter()
+        .zip(&bonds.r0[range.clone()])
+        .zip(&bonds.w0[range.clone()])
+        .zip(&op.inv_r02[range])
+    {
+        let j = j as usize;
+        let om = w0 * inv;
+        let g = r0 * om;
+        moment += g;
+        acc += bm[j] * g + (r0 + (p.u[j] - ui)) * ((si + share[j]) * kv * om);
+    }
+    acc + bm[i] * moment
+}
+
+/// The paper's reference number density of particle i: n0, or its own at the start (the local
+/// variant).
+#[inline(always)]
+fn paper_density<const D: usize>(op: &ElasticOperator<D>, p: &Particles<D>, i: usize) -> f64
+where
+    Space: Dim<D>,
+{
+    if op.model == ElasticModel::PaperLocal {
+        p.n_ref[i]
+    } else {
+        op.n0
+    }
+}
+
+/// Pass 1 of the paper's operators for particle i: its pressure, Eqs. (26) and (29) (compiled
+/// as the corrected passes).
+#[cfg_attr(
+    not(fuzzing),
+    multiversion::multiversion(
+        targets(
+            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+            "x86_64+avx2+fma"
+        ),
+        dispatcher = "direct"
+    )
+)]
+fn paper_pass1_particle<const D: usize>(
+    op: &ElasticOperator<D>,
+    p: &Particles<D>,
+    bonds: &Bonds<D>,
+    i: usize,
+) -> f64
+where
+    Space: Dim<D>,
+{
+    let ui = p.u[i];
+    let mut sum = 0.0;
+    let range = bonds.of(i);
+    for (((&j, r0), &w0), &inv) in bonds.nbr[range.clone()]
+        .iter()
+        .zip(&bonds.r0[range.clone()])
+        .zip(&bonds.w0[range.clone()])
+        .zip(&op.inv_r02[range])
+    {
+        if w0 == 0.0 {
+            continue;
+        }
+        // (|r| - l0) / l0 with one square root.
+        let r2 = (r0 + (p.u[j as usize] - ui)).norm_squared();
+        sum += w0 * ((r2 * inv).sqrt() - 1.0);
+    }
+    // A particle without bonds (n_i = 0 in the local model) has no volumetric strain: sum = 0,
+    // and 0 / 0 must not make its pressure NaN.
+    if sum == 0.0 {
+        0.0
+    } else {
+        -op.lame[p.body[i] as usize].1 * D as f64 / paper_density(op, p, i) * sum
+    }
+}
+
+/// Pass 2 of the paper's operators for particle i: its force and moment (compiled as the
+/// corrected passes).
+#[cfg_attr(
+    not(fuzzing),
+    multiversion::multiversion(
+        targets(
+            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+            "x86_64+avx2+fma"
+        ),
+        dispatcher = "direct"
+    )
+)]
+fn paper_pass2_particle<const D: usize>(
+    op: &ElasticOperator<D>,
+    p: &Particles<D>,
+    bonds: &Bonds<D>,
+    pr: &[f64],
+    i: usize,
+) -> (Vect<D>, <Space as Dim<D>>::Ang)
+where
+    Space: Dim<D>,
+{
+    let ui = p.u[i];
+    let qi = p.q[i];
+    let c = 2.0 * D as f64 / paper_density(op, p, i) * op.volume;
+    let mu2 = 2.0 * op.lame[p.body[i] as usize].0;
+    let mut acc = Vect::<D>::zeros();
+    let mut mom = <Space as Dim<D>>::ang_zero();
+    let range = bonds.of(i);
+    for (((&j, r0), &w0), &inv) in bonds.nbr[range.clone()]
+        .iter()
+        .zip(&bonds.r0[range.clone()])
+        .zip(&bonds.w0[range.clone()])
+        .zip(&op.inv_r02[range])
+    {
+        if w0 == 0.0 {
+            continue;
+        }
+        let j = j as usize;
+        let rij = r0 + (p.u[j] - ui);
+        let u = rij - <Space as Dim<D>>::rotate_midpoint(&qi, &p.q[j], r0);
+        let fs = u * (c * mu2 * w0 * inv);
+        let rn = (r0.norm_squared() * rij.norm_squared()).sqrt();
+        acc += fs + rij * (-c * 0.5 * (pr[i] + pr[j]) * w0 / rn);
+        mom = <Space as Dim<D>>::ang_add(mom, <Space as Dim<D>>::cross(&(rij * 0.5), &fs));
+    }
+    (acc, mom)
 }

@@ -8,12 +8,12 @@ use crate::physics::ElasticModel;
 /// Bytes per particle besides its bonds (2D, 3D) and per stored (directed) bond of the operators
 /// with first-order fits (corrected, paper): the peak of `Simulation::new` measured with a
 /// counting allocator (tests/limits_memory.rs; `CALIBRATE=1` prints the figures) is exactly
-/// linear in the bonds per particle: 440 + 28 nb bytes in 2D, 825 + 36 nb in 3D (nbr 4, r0 8 D
-/// and w0 8 bytes per bond), at re = 1.5, 2.1 and 3 dp and 8,000 to 250,000 particles (776 B
-/// per particle in 2D and 1977 B in 3D at re = 2.1 dp). The constants add about 15 % for what grows
+/// linear in the bonds per particle: about 440 + 36 nb bytes in 2D, 825 + 44 nb in 3D (nbr 4,
+/// r0 8 D, w0 8 and the force passes' 1 / |r0|^2 8 bytes per bond), at re = 1.5, 2.1 and 3 dp
+/// and 8,000 to 250,000 particles (853 B per particle in 2D and 2177 B in 3D at re = 2.1 dp). The constants add about 15 % for what grows
 /// during a run (contact pair lists) and the allocator.
 const BASE_BYTES: [u64; 2] = [512, 960];
-const BOND_BYTES: [u64; 2] = [32, 40];
+const BOND_BYTES: [u64; 2] = [40, 48];
 /// The same for `second_order`, which stores per bond the position of its reverse bond's output
 /// and per particle its fits' flags, span and the indices of its interned weight and geometry
 /// sets (src/physics/stencils.rs), and keeps per bond the conjugates of its force pass (padded

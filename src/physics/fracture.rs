@@ -259,17 +259,16 @@ impl<const D: usize> StrainScreen<D> {
             .for_each(|(i, (f, slack))| {
                 let mut hit = false;
                 let mut m = f64::INFINITY;
+                let ui = u[i];
                 for k in bonds.of(i) {
                     if bonds.w0[k] == 0.0 {
                         continue;
                     }
-                    let j = bonds.nbr[k] as usize;
-                    let (a, b, r0) = if i < j {
-                        (i, j, bonds.r0[k])
-                    } else {
-                        (j, i, -bonds.r0[k])
-                    };
-                    let du = u[b] - u[a];
+                    // From i to j, not in `strained`'s canonical direction: the two differ by
+                    // the sign of r0 and of du (exactly, as r0_ji = -r0_ij and u_i - u_j =
+                    // -(u_j - u_i) in floating point), which the squared lengths do not see.
+                    let r0 = bonds.r0[k];
+                    let du = u[bonds.nbr[k] as usize] - ui;
                     let l02 = r0.norm_squared();
                     let x2 = match measure {
                         BondStrain::Stretch => (r0 + du).norm_squared(),

@@ -91,7 +91,12 @@ where
                     *wi,
                     <Space as Dim<D>>::ang_scale(torque[i], dt / inertia[i]),
                 );
-                *qi = <Space as Dim<D>>::advance(qi, wi, dt);
+                // Without an angular velocity the orientation stays as it is (the energy
+                // operators have no moments: their particles never turn), and the quaternion
+                // exponential is skipped.
+                if *wi != <Space as Dim<D>>::ang_zero() {
+                    *qi = <Space as Dim<D>>::advance(qi, wi, dt);
+                }
             }
             // Motion due to this step's internal, contact and damping forces: an unstable mode
             // grows by a factor > 1 per step in acceleration, while a rigid translation has

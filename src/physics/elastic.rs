@@ -464,19 +464,9 @@ where
     }
 }
 
-/// Pass 1 of the corrected operator for particle i: F_i, the stress and B_i (compiled also for
-/// AVX-512 and AVX2 and chosen at run time, as the second-order passes; no fused operations,
-/// so every version gives the same bits).
-#[cfg_attr(
-    not(fuzzing),
-    multiversion::multiversion(
-        targets(
-            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
-            "x86_64+avx2+fma"
-        ),
-        dispatcher = "direct"
-    )
-)]
+/// Pass 1 of the corrected operator for particle i: F_i, the stress and B_i. Baseline code
+/// only: compiled also for AVX2 (multiversion, as the paper's passes) it ran 4 % slower
+/// (`study throughput` 2.00-2.02e8 against 2.10-2.11e8 pair-updates/s, BENCHMARKS.md).
 fn corrected_pass1_particle<const D: usize>(
     op: &ElasticOperator<D>,
     p: &Particles<D>,
@@ -518,17 +508,7 @@ fn corrected_pass1_particle<const D: usize>(
 /// B_j) r0_ij + (s_i + s_j) kappa V r_ij] with s the retained shares (B carries its particle's
 /// share). B_i's part is B_i sum_j w/|r0|^2 r0_ij, added once after the loop (zero for a
 /// symmetric neighbourhood); a broken bond has w0 = 0 and adds zeros, without a branch.
-/// Compiled as pass 1.
-#[cfg_attr(
-    not(fuzzing),
-    multiversion::multiversion(
-        targets(
-            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
-            "x86_64+avx2+fma"
-        ),
-        dispatcher = "direct"
-    )
-)]
+/// Baseline code, as pass 1.
 fn corrected_pass2_particle<const D: usize>(
     op: &ElasticOperator<D>,
     p: &Particles<D>,
@@ -576,7 +556,8 @@ where
 }
 
 /// Pass 1 of the paper's operators for particle i: its pressure, Eqs. (26) and (29) (compiled
-/// as the corrected passes).
+/// also for AVX-512 and AVX2 and chosen at run time, as the second-order passes: +10 % on the
+/// paper's passes; no fused operations, so every version gives the same bits).
 #[cfg_attr(
     not(fuzzing),
     multiversion::multiversion(
@@ -621,8 +602,7 @@ where
     }
 }
 
-/// Pass 2 of the paper's operators for particle i: its force and moment (compiled as the
-/// corrected passes).
+/// Pass 2 of the paper's operators for particle i: its force and moment (compiled as pass 1).
 #[cfg_attr(
     not(fuzzing),
     multiversion::multiversion(

@@ -82,11 +82,14 @@ fn energy_scale<const D: usize>(n: usize, l0: f64) -> f64 {
 }
 
 /// Checks that the undeformed world feels no force and stores no energy, and returns its
-/// critical step. Round-off: the operators evaluate F = G K^-1 with G = K bit for bit at rest
-/// (corrected) and r - R r0 = 0, |r| - |r0| = 0 exactly (paper), so what remains is the
-/// round-off of a matrix product, about 1e-16 of the stress; 1e-9 of the force and 1e-12 of the
-/// energy of a 1e-3 strain leave a margin of 1e3-1e4 above it while catching the defect
-/// (forces of 0.7 kN, 7 times the 1e-3 strain force, and energies of 16 J).
+/// critical step. Round-off: the corrected operator evaluates F = P + H K^-1 with H = 0 at rest
+/// (the identity bit for bit, so its strain, residuals and energy are exactly zero), the paper's
+/// r - R r0 = 0, |r| - |r0| = 0 exactly, and the second-order fits are zero, so what remains in
+/// the forces is the round-off of sums of opposite bond terms, about 1e-16 of the stress; 1e-9
+/// of the force and 1e-12 of the energy of a 1e-3 strain leave a margin of 1e3-1e4 above it
+/// while catching the defect (forces of 0.7 kN, 7 times the 1e-3 strain force, and energies of
+/// 16 J). The corrected operator's energy must be zero exactly (before F was written P + H K^-1
+/// it was K K^-1, 1e-16 from the identity).
 fn rest_check<const D: usize>(w: &World<D>, what: &str) -> f64
 where
     Space: Dim<D>,
@@ -105,6 +108,12 @@ where
         e.abs() <= 1e-12 * es,
         "{what}: strain energy at rest {e:.3e} J (1e-3 strain: {es:.3e} J)"
     );
+    if w.op.model == ElasticModel::Corrected {
+        assert_eq!(
+            e, 0.0,
+            "{what}: the corrected operator's energy at rest is not exactly zero"
+        );
+    }
     w.critical_dt()
 }
 

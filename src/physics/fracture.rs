@@ -275,12 +275,11 @@ impl<const D: usize> StrainScreen<D> {
                         _ => du.norm_squared(),
                     };
                     let room = limit2 * l02 - x2;
-                    // Without a branch on the running minimum: a division per bond, independent
-                    // of the others, instead of a compare chained to the last update of m (the
-                    // update and its division held 36 % of this loop's samples in case 3).
-                    hit |= room < 0.0;
-                    let ratio = room / l02;
-                    m = if ratio >= 0.0 && ratio < m { ratio } else { m };
+                    if room < 0.0 {
+                        hit = true;
+                    } else if room < m * l02 {
+                        m = room / l02;
+                    }
                 }
                 *f = u8::from(hit);
                 // A NaN room leaves m as it was: a non-finite state is caught by the step.

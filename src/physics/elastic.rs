@@ -12,6 +12,7 @@ use super::particles::Particles;
 use super::second_order::{Cells, SecondOrder, SecondOrderScratch};
 pub use super::shape::{shape_pinv, shape_tensor, SHAPE_MIN_CONDITION};
 use crate::par_iter_mut;
+use crate::physics::cpu_versions;
 
 /// Precomputed constants of the elastic operator.
 #[derive(Clone, Debug)]
@@ -164,6 +165,23 @@ where
             (p + p.transpose()) * 0.5
         };
         (k_inv, span)
+    }
+
+    /// Particle i's bonds as the corrected and paper passes read them: neighbour, reference
+    /// vector, weight w0 and 1 / |r0|^2.
+    #[inline(always)]
+    fn bond_terms<'a>(
+        &'a self,
+        bonds: &'a Bonds<D>,
+        i: usize,
+    ) -> impl Iterator<Item = (usize, &'a Vect<D>, f64, f64)> + 'a {
+        let r = bonds.of(i);
+        bonds.nbr[r.clone()]
+            .iter()
+            .zip(&bonds.r0[r.clone()])
+            .zip(&bonds.w0[r.clone()])
+            .zip(&self.inv_r02[r])
+            .map(|(((&j, r0), &w0), &inv)| (j as usize, r0, w0, inv))
     }
 
     /// Refreshes the operator of particle i after some of its bonds broke, Eq. (42): K_i^-1,
@@ -368,14 +386,8 @@ where
         // K K^-1 against I. A broken bond (w0 = 0) adds zeros.
         let ui = p.u[i];
         let mut h = Mat::<D>::zeros();
-        let range = bonds.of(i);
-        for (((&j, r0), &w0), &inv) in bonds.nbr[range.clone()]
-            .iter()
-            .zip(&bonds.r0[range.clone()])
-            .zip(&bonds.w0[range.clone()])
-            .zip(&self.inv_r02[range])
-        {
-            let du = p.u[j as usize] - ui;
+        for (j, r0, w0, inv) in self.bond_terms(bonds, i) {
+            let du = p.u[j] - ui;
             h += (du * (w0 * inv)) * r0.transpose();
         }
         self.span[i] + h * self.k_inv[i]
@@ -525,14 +537,7 @@ where
     let kv = op.kappa(op.lame[p.body[i] as usize].0) * op.volume;
     let mut acc = Vect::<D>::zeros();
     let mut moment = Vect::<D>::zeros();
-    let range = bonds.of(i);
-    for (((&j, r0), &w0), &inv) in bonds.nbr[range.clone()]
-        .iter()
-        .zip(&bonds.r0[range.clone()])
-        .zip(&bonds.w0[range.clone()])
-        .zip(&op.inv_r02[range])
-    {
-        let j = j as usize;
+    for (j, r0, w0, inv) in op.bond_terms(bonds, i) {
         let om = w0 * inv;
         let g = r0 * om;
         moment += g;
@@ -555,97 +560,68 @@ where
     }
 }
 
-/// Pass 1 of the paper's operators for particle i: its pressure, Eqs. (26) and (29) (compiled
-/// also for AVX-512 and AVX2 and chosen at run time, as the second-order passes: +10 % on the
-/// paper's passes; no fused operations, so every version gives the same bits).
-#[cfg_attr(
-    not(fuzzing),
-    multiversion::multiversion(
-        targets(
-            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
-            "x86_64+avx2+fma"
-        ),
-        dispatcher = "direct"
-    )
-)]
-fn paper_pass1_particle<const D: usize>(
-    op: &ElasticOperator<D>,
-    p: &Particles<D>,
-    bonds: &Bonds<D>,
-    i: usize,
-) -> f64
-where
-    Space: Dim<D>,
-{
-    let ui = p.u[i];
-    let mut sum = 0.0;
-    let range = bonds.of(i);
-    for (((&j, r0), &w0), &inv) in bonds.nbr[range.clone()]
-        .iter()
-        .zip(&bonds.r0[range.clone()])
-        .zip(&bonds.w0[range.clone()])
-        .zip(&op.inv_r02[range])
+cpu_versions! {
+    /// Pass 1 of the paper's operators for particle i: its pressure, Eqs. (26) and (29) (compiled
+    /// also for AVX-512 and AVX2 and chosen at run time, as the second-order passes: +10 % on the
+    /// paper's passes; no fused operations, so every version gives the same bits).
+    fn paper_pass1_particle<const D: usize>(
+        op: &ElasticOperator<D>,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        i: usize,
+    ) -> f64
+    where
+        Space: Dim<D>,
     {
-        if w0 == 0.0 {
-            continue;
+        let ui = p.u[i];
+        let mut sum = 0.0;
+        for (j, r0, w0, inv) in op.bond_terms(bonds, i) {
+            if w0 == 0.0 {
+                continue;
+            }
+            // (|r| - l0) / l0 with one square root.
+            let r2 = (r0 + (p.u[j] - ui)).norm_squared();
+            sum += w0 * ((r2 * inv).sqrt() - 1.0);
         }
-        // (|r| - l0) / l0 with one square root.
-        let r2 = (r0 + (p.u[j as usize] - ui)).norm_squared();
-        sum += w0 * ((r2 * inv).sqrt() - 1.0);
-    }
-    // A particle without bonds (n_i = 0 in the local model) has no volumetric strain: sum = 0,
-    // and 0 / 0 must not make its pressure NaN.
-    if sum == 0.0 {
-        0.0
-    } else {
-        -op.lame[p.body[i] as usize].1 * D as f64 / paper_density(op, p, i) * sum
+        // A particle without bonds (n_i = 0 in the local model) has no volumetric strain: sum = 0,
+        // and 0 / 0 must not make its pressure NaN.
+        if sum == 0.0 {
+            0.0
+        } else {
+            -op.lame[p.body[i] as usize].1 * D as f64 / paper_density(op, p, i) * sum
+        }
     }
 }
 
-/// Pass 2 of the paper's operators for particle i: its force and moment (compiled as pass 1).
-#[cfg_attr(
-    not(fuzzing),
-    multiversion::multiversion(
-        targets(
-            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
-            "x86_64+avx2+fma"
-        ),
-        dispatcher = "direct"
-    )
-)]
-fn paper_pass2_particle<const D: usize>(
-    op: &ElasticOperator<D>,
-    p: &Particles<D>,
-    bonds: &Bonds<D>,
-    pr: &[f64],
-    i: usize,
-) -> (Vect<D>, <Space as Dim<D>>::Ang)
-where
-    Space: Dim<D>,
-{
-    let ui = p.u[i];
-    let qi = p.q[i];
-    let c = 2.0 * D as f64 / paper_density(op, p, i) * op.volume;
-    let mu2 = 2.0 * op.lame[p.body[i] as usize].0;
-    let mut acc = Vect::<D>::zeros();
-    let mut mom = <Space as Dim<D>>::ang_zero();
-    let range = bonds.of(i);
-    for (((&j, r0), &w0), &inv) in bonds.nbr[range.clone()]
-        .iter()
-        .zip(&bonds.r0[range.clone()])
-        .zip(&bonds.w0[range.clone()])
-        .zip(&op.inv_r02[range])
+cpu_versions! {
+    /// Pass 2 of the paper's operators for particle i: its force and moment (compiled as pass 1).
+    fn paper_pass2_particle<const D: usize>(
+        op: &ElasticOperator<D>,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        pr: &[f64],
+        i: usize,
+    ) -> (Vect<D>, <Space as Dim<D>>::Ang)
+    where
+        Space: Dim<D>,
     {
-        if w0 == 0.0 {
-            continue;
+        let ui = p.u[i];
+        let qi = p.q[i];
+        let c = 2.0 * D as f64 / paper_density(op, p, i) * op.volume;
+        let mu2 = 2.0 * op.lame[p.body[i] as usize].0;
+        let mut acc = Vect::<D>::zeros();
+        let mut mom = <Space as Dim<D>>::ang_zero();
+        for (j, r0, w0, inv) in op.bond_terms(bonds, i) {
+            if w0 == 0.0 {
+                continue;
+            }
+            let rij = r0 + (p.u[j] - ui);
+            let u = rij - <Space as Dim<D>>::rotate_midpoint(&qi, &p.q[j], r0);
+            let fs = u * (c * mu2 * w0 * inv);
+            let rn = (r0.norm_squared() * rij.norm_squared()).sqrt();
+            acc += fs + rij * (-c * 0.5 * (pr[i] + pr[j]) * w0 / rn);
+            mom = <Space as Dim<D>>::ang_add(mom, <Space as Dim<D>>::cross(&(rij * 0.5), &fs));
         }
-        let j = j as usize;
-        let rij = r0 + (p.u[j] - ui);
-        let u = rij - <Space as Dim<D>>::rotate_midpoint(&qi, &p.q[j], r0);
-        let fs = u * (c * mu2 * w0 * inv);
-        let rn = (r0.norm_squared() * rij.norm_squared()).sqrt();
-        acc += fs + rij * (-c * 0.5 * (pr[i] + pr[j]) * w0 / rn);
-        mom = <Space as Dim<D>>::ang_add(mom, <Space as Dim<D>>::cross(&(rij * 0.5), &fs));
+        (acc, mom)
     }
-    (acc, mom)
 }

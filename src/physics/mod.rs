@@ -32,6 +32,28 @@ macro_rules! par_iter_mut {
     };
 }
 
+/// Compiles a force pass for AVX-512 and for AVX2 + FMA besides the baseline x86-64 and chooses
+/// the widest the CPU has at run time (the `multiversion` crate; the FMU's binary stays
+/// portable). A pass with no fused operations gives the same bits in every version. The fuzz
+/// targets (`cfg(fuzzing)`, set by cargo-fuzz) compile the baseline only: they test the logic,
+/// and the instrumented copies cost their build most of its time.
+macro_rules! cpu_versions {
+    ($f:item) => {
+        #[cfg_attr(
+            not(fuzzing),
+            multiversion::multiversion(
+                targets(
+                    "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
+                    "x86_64+avx2+fma"
+                ),
+                dispatcher = "direct"
+            )
+        )]
+        $f
+    };
+}
+pub(crate) use cpu_versions;
+
 pub use dim::{Dim, Mat, Space, Vect};
 pub use params::{BondStrain, ContactOptions, ElasticModel, Material, MaterialLaw, SolverOptions};
 pub use world::{duration_text, BodyInit, InitialVelocity, SimError, World};

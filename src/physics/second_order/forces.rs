@@ -7,6 +7,7 @@ use super::{
 };
 use crate::par_iter_mut;
 use crate::physics::bonds::Bonds;
+use crate::physics::cpu_versions;
 use crate::physics::dim::{Dim, Mat, Space, Vect};
 #[allow(unused_imports)]
 use crate::physics::par::*;
@@ -117,34 +118,26 @@ where
     }
 }
 
-/// Pass 2 of particle i: the sum of its block of `dbond` less its reverse bonds' values (compiled
-/// also for AVX-512 and AVX2, as pass 1; the same bits in every version).
-#[cfg_attr(
-    not(fuzzing),
-    multiversion::multiversion(
-        targets(
-            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
-            "x86_64+avx2+fma"
-        ),
-        dispatcher = "direct"
-    )
-)]
-fn pass2_particle<const D: usize>(
-    op: &SecondOrder<D>,
-    bonds: &Bonds<D>,
-    dbond: &[f64],
-    i: usize,
-) -> Vect<D>
-where
-    Space: Dim<D>,
-{
-    let block = &dbond[op.pad_start[i] as usize..op.pad_start[i + 1] as usize];
-    let mut back = Vect::<D>::zeros();
-    for &at in &op.mirror_pos[bonds.of(i)] {
-        let at = at as usize;
-        back += Vect::<D>::from_fn(|a, _| dbond[at + a * lanes::LANES]);
+cpu_versions! {
+    /// Pass 2 of particle i: the sum of its block of `dbond` less its reverse bonds' values (compiled
+    /// also for AVX-512 and AVX2, as pass 1; the same bits in every version).
+    fn pass2_particle<const D: usize>(
+        op: &SecondOrder<D>,
+        bonds: &Bonds<D>,
+        dbond: &[f64],
+        i: usize,
+    ) -> Vect<D>
+    where
+        Space: Dim<D>,
+    {
+        let block = &dbond[op.pad_start[i] as usize..op.pad_start[i + 1] as usize];
+        let mut back = Vect::<D>::zeros();
+        for &at in &op.mirror_pos[bonds.of(i)] {
+            let at = at as usize;
+            back += Vect::<D>::from_fn(|a, _| dbond[at + a * lanes::LANES]);
+        }
+        lanes::block_sum::<D>(block) - back
     }
-    lanes::block_sum::<D>(block) - back
 }
 
 /// What pass 1 reads besides the operator (the state and the cells' constants).
@@ -165,41 +158,33 @@ where
     l0: f64,
 }
 
-/// Pass 1 of particle i: its fit, the conjugates of its cell energy and of its bonds'
-/// residuals, and dE/d du of each of its bonds into `out` (its block of `dbond`) (issue 25: compiled also for AVX-512 and AVX2 and chosen at run time
-/// where the CPU has them; the bond loops of module `lanes` work on groups of bonds in vector
-/// registers with fused multiply-adds, exactly rounded, so every version gives the same results
-/// bit for bit). The fuzz targets (`cfg(fuzzing)`, set by cargo-fuzz) compile the baseline
-/// only: they test the logic, and the two more instrumented copies took 10 of the crate's 100
-/// CPU-s in their build.
-#[cfg_attr(
-    not(fuzzing),
-    multiversion::multiversion(
-        targets(
-            "x86_64+avx512f+avx512vl+avx512dq+avx512bw+avx2+fma",
-            "x86_64+avx2+fma"
-        ),
-        dispatcher = "direct"
-    )
-)]
-fn pass1_particle<const D: usize>(
-    op: &SecondOrder<D>,
-    ctx: &Pass1<D>,
-    i: usize,
-    gr: &mut Mat<D>,
-    out: &mut [f64],
-    c_out: &mut u8,
-) where
-    Space: Dim<D>,
-{
-    let Pass1 { bonds, uu, .. } = *ctx;
-    lanes::with_groups(
-        op,
-        bonds,
-        i,
-        |k| uu[k],
-        |groups| pass1_groups(op, ctx, i, groups, gr, out, c_out),
-    );
+cpu_versions! {
+    /// Pass 1 of particle i: its fit, the conjugates of its cell energy and of its bonds'
+    /// residuals, and dE/d du of each of its bonds into `out` (its block of `dbond`) (issue 25: compiled also for AVX-512 and AVX2 and chosen at run time
+    /// where the CPU has them; the bond loops of module `lanes` work on groups of bonds in vector
+    /// registers with fused multiply-adds, exactly rounded, so every version gives the same results
+    /// bit for bit). The fuzz targets (`cfg(fuzzing)`, set by cargo-fuzz) compile the baseline
+    /// only: they test the logic, and the two more instrumented copies took 10 of the crate's 100
+    /// CPU-s in their build.
+    fn pass1_particle<const D: usize>(
+        op: &SecondOrder<D>,
+        ctx: &Pass1<D>,
+        i: usize,
+        gr: &mut Mat<D>,
+        out: &mut [f64],
+        c_out: &mut u8,
+    ) where
+        Space: Dim<D>,
+    {
+        let Pass1 { bonds, uu, .. } = *ctx;
+        lanes::with_groups(
+            op,
+            bonds,
+            i,
+            |k| uu[k],
+            |groups| pass1_groups(op, ctx, i, groups, gr, out, c_out),
+        );
+    }
 }
 
 /// Pass 1 of particle i on its bonds gathered in groups (module `lanes`).

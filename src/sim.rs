@@ -336,6 +336,12 @@ impl Simulation {
     pub fn contact_searches(&self) -> u64 {
         with!(self, m => m.world.contact_searches())
     }
+    /// Force evaluations so far in which a pair of one body (across a broken bond, or never
+    /// bonded) was within its contact distance: while 0, the scene's
+    /// `solver.contact.fractured_surfaces` has changed nothing in the run.
+    pub fn same_body_touches(&self) -> u64 {
+        with!(self, m => m.world.same_body_touches())
+    }
     /// Fracture checks so far, one per step (0 when eps_max is infinite).
     pub fn fracture_checks(&self) -> u64 {
         with!(self, m => m.world.fracture_checks)

@@ -152,9 +152,17 @@ pub struct Contact<const D: usize> {
     f_s: Vec<Vect<D>>,
     /// First overlap found per surface particle (scratch).
     hit: Vec<Option<(u32, f64, f64)>>,
+    /// Whether a pair of one body came within its contact distance, per surface particle
+    /// (scratch).
+    touch: Vec<bool>,
     pub needs_rebuild: bool,
     /// Pair-list builds so far.
     pub searches: u64,
+    /// Force evaluations in which some pair of one body (across a broken bond, or never
+    /// bonded) was within its contact distance: the only pairs whose forces depend on
+    /// `fractured_surfaces`, so two runs that differ only in it are the same to the bit while
+    /// this stays 0.
+    pub same_body_touches: u64,
 }
 
 impl<const D: usize> Contact<D> {
@@ -213,6 +221,8 @@ impl<const D: usize> Contact<D> {
             radius,
             f_s: Vec::new(),
             hit: Vec::new(),
+            touch: Vec::new(),
+            same_body_touches: 0,
             needs_rebuild: true,
             searches: 0,
             opts,
@@ -354,6 +364,7 @@ impl<const D: usize> Contact<D> {
         let ns = self.surface_ids.len();
         self.f_s.resize(ns, Vect::<D>::zeros());
         self.hit.resize(ns, None);
+        self.touch.resize(ns, false);
         let frac = self.opts.overlap_fraction;
         let nb = self.n_bodies;
         let (ids, start, nbr, repel, reach, k0) = (
@@ -366,12 +377,14 @@ impl<const D: usize> Contact<D> {
         );
         par_iter_mut!(self.f_s)
             .zip(par_iter_mut!(self.hit))
+            .zip(par_iter_mut!(self.touch))
             .enumerate()
-            .for_each(|(s, (f_out, h_out))| {
+            .for_each(|(s, ((f_out, h_out), t_out))| {
                 let i = ids[s] as usize;
                 let bi = body[i] as usize;
                 let mut acc = Vect::<D>::zeros();
                 let mut hit = None;
+                let mut touch = false;
                 for e in start[s] as usize..start[s + 1] as usize {
                     let j = nbr[e] as usize;
                     let r = rel(x0, u, i, j);
@@ -380,6 +393,7 @@ impl<const D: usize> Contact<D> {
                     if r2 >= c * c {
                         continue;
                     }
+                    touch |= body[j] as usize == bi;
                     let d = r2.sqrt();
                     // Overlap: closer than the fraction of the pair's contact distance.
                     if d < frac * c {
@@ -396,7 +410,11 @@ impl<const D: usize> Contact<D> {
                 }
                 *f_out = acc;
                 *h_out = hit;
+                *t_out = touch;
             });
+        if self.touch.iter().any(|&t| t) {
+            self.same_body_touches += 1;
+        }
         for (s, &i) in self.surface_ids.iter().enumerate() {
             force[i as usize] += self.f_s[s];
         }

@@ -277,6 +277,11 @@ pub struct Case3Report {
     pub history: Vec<Case3Sample>,
     /// The paper's times (s), for comparison.
     pub paper: Vec<(String, f64)>,
+    /// Time up to which this run was the other variant's (s): it went on from that run's
+    /// state there, to the bit as from the start (`case3_report_resumed`); its wall time is
+    /// its own part's.
+    #[serde(default)]
+    pub resumed_from: Option<f64>,
 }
 
 /// A fragment of at least this many particles counts as a part of the block (s).
@@ -317,38 +322,104 @@ pub fn case3_report_with(
     end_time: f64,
     interval: f64,
     check: f64,
+    on_check: impl FnMut(&Simulation, CheckPoint),
+) -> Result<Case3Report, String> {
+    let sim = Simulation::new(scene).map_err(|e| e.to_string())?;
+    case3_drive(
+        scene,
+        sim,
+        None,
+        (end_time, interval, check),
+        on_check,
+        None,
+    )
+}
+
+/// A case 3 run stopped at an event check, from which a run of the same scene with the other
+/// `solver.contact.fractured_surfaces` goes on bit for bit: taken while no pair of one body has
+/// come within its contact distance (`Simulation::same_body_touches` is 0), the only pairs
+/// whose forces that flag changes. The paper's two variants share their first 0.47 s so.
+#[derive(Clone, Debug)]
+pub struct Case3Fork {
+    /// The scene with the flag set to false, to check that a resumed run is of the same case.
+    scene: Scene,
+    /// (end time, sampling interval, check interval) (s).
+    schedule: (f64, f64, f64),
+    state: crate::sim::SimState,
+    report: Case3Report,
+    /// The check the resumed run does next.
+    next_check: u64,
+}
+
+impl Case3Fork {
+    /// The time of the state (s).
+    pub fn time(&self) -> f64 {
+        self.report.end_time
+    }
+}
+
+/// [`case3_report_with`] that also hands `fork` the last state from which the scene's other
+/// variant can go on (once: when a pair of one body first touches, or where the run ends).
+pub fn case3_report_forking(
+    scene: &Scene,
+    end_time: f64,
+    interval: f64,
+    check: f64,
+    on_check: impl FnMut(&Simulation, CheckPoint),
+    fork: &mut dyn FnMut(Case3Fork),
+) -> Result<Case3Report, String> {
+    let sim = Simulation::new(scene).map_err(|e| e.to_string())?;
+    case3_drive(
+        scene,
+        sim,
+        None,
+        (end_time, interval, check),
+        on_check,
+        Some(fork),
+    )
+}
+
+/// Runs `scene` on from `fork`, taken in a run of the same scene with the other
+/// `fractured_surfaces` and the same schedule: the same report, to the bit, as a run from the
+/// start (its wall time is this run's; `resumed_from` says where it started).
+pub fn case3_report_resumed(
+    scene: &Scene,
+    fork: Case3Fork,
+    on_check: impl FnMut(&Simulation, CheckPoint),
+) -> Result<Case3Report, String> {
+    if fork_key(scene) != fork.scene {
+        return Err(format!(
+            "the fork was taken in another case 3 scene than '{}' (they may differ only in solver.contact.fractured_surfaces)",
+            scene.name
+        ));
+    }
+    let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
+    sim.set_state(&fork.state).map_err(|e| e.to_string())?;
+    let schedule = fork.schedule;
+    case3_drive(scene, sim, Some(fork), schedule, on_check, None)
+}
+
+/// The scene as a fork compares it: `fractured_surfaces` set to false.
+fn fork_key(scene: &Scene) -> Scene {
+    let mut s = scene.clone();
+    s.solver.contact.fractured_surfaces = false;
+    s.name.clear();
+    s.description.clear();
+    s
+}
+
+/// The loop of the case 3 runs: from the start (`from` None) or from a fork, over the event
+/// checks of `schedule` = (end time, sampling interval, check interval) (s).
+fn case3_drive(
+    scene: &Scene,
+    mut sim: Simulation,
+    from: Option<Case3Fork>,
+    (end_time, interval, check): (f64, f64, f64),
     mut on_check: impl FnMut(&Simulation, CheckPoint),
+    mut fork: Option<&mut dyn FnMut(Case3Fork)>,
 ) -> Result<Case3Report, String> {
     let t0 = std::time::Instant::now();
-    let mut sim = Simulation::new(scene).map_err(|e| e.to_string())?;
     sim.check_work(end_time).map_err(|e| e.to_string())?;
-    let mut r = Case3Report {
-        scene: scene.name.clone(),
-        fractured_surfaces: scene.solver.contact.fractured_surfaces,
-        dp: scene.particle_spacing,
-        particles: sim.particles(),
-        dt: sim.max_dt(),
-        critical_dt: sim.critical_dt(),
-        steps: 0,
-        contact_searches: 0,
-        strain_tests: 0,
-        wall_time_s: 0.0,
-        end_time: 0.0,
-        first_contact: None,
-        first_fracture: None,
-        first_fractured_surface_contact: None,
-        separation: None,
-        failure_time: None,
-        failure: None,
-        final_broken_bonds: 0,
-        final_fragments: 0,
-        final_large_fragments: 0,
-        history: Vec::new(),
-        paper: PAPER_TIMES
-            .iter()
-            .map(|(n, t)| (n.to_string(), *t))
-            .collect(),
-    };
     let sample = |sim: &Simulation| Case3Sample {
         time: sim.time(),
         broken_bonds: sim.broken_bonds(),
@@ -361,11 +432,79 @@ pub fn case3_report_with(
         momentum_y: sim.momentum()[1],
         max_bond_strain: sim.max_bond_strain(),
     };
-    r.history.push(sample(&sim));
-    on_check(&sim, CheckPoint::Start);
+    // The counts of the shared part, to which this run's are added.
+    let (mut r, first_check, (searches0, tests0)) = match from {
+        Some(f) => {
+            let counts = (f.report.contact_searches, f.report.strain_tests);
+            let mut r = f.report;
+            r.scene = scene.name.clone();
+            r.fractured_surfaces = scene.solver.contact.fractured_surfaces;
+            r.resumed_from = Some(r.end_time);
+            (r, f.next_check, counts)
+        }
+        None => {
+            let mut r = Case3Report {
+                scene: scene.name.clone(),
+                fractured_surfaces: scene.solver.contact.fractured_surfaces,
+                dp: scene.particle_spacing,
+                particles: sim.particles(),
+                dt: sim.max_dt(),
+                critical_dt: sim.critical_dt(),
+                steps: 0,
+                contact_searches: 0,
+                strain_tests: 0,
+                wall_time_s: 0.0,
+                end_time: 0.0,
+                first_contact: None,
+                first_fracture: None,
+                first_fractured_surface_contact: None,
+                separation: None,
+                failure_time: None,
+                failure: None,
+                final_broken_bonds: 0,
+                final_fragments: 0,
+                final_large_fragments: 0,
+                history: Vec::new(),
+                paper: PAPER_TIMES
+                    .iter()
+                    .map(|(n, t)| (n.to_string(), *t))
+                    .collect(),
+                resumed_from: None,
+            };
+            r.history.push(sample(&sim));
+            on_check(&sim, CheckPoint::Start);
+            (r, 1, (0, 0))
+        }
+    };
     let n_checks = (end_time / check).round().max(1.0) as u64;
     let per_sample = ((interval / check).round() as u64).max(1);
-    for k in 1..=n_checks {
+    // What is known at the end of a check (for a fork taken there).
+    let finish = |r: &mut Case3Report, sim: &Simulation| {
+        r.end_time = sim.time();
+        r.steps = sim.steps();
+        r.contact_searches = searches0 + sim.contact_searches();
+        r.strain_tests = tests0 + sim.strain_tests();
+        r.final_broken_bonds = sim.broken_bonds();
+        r.final_fragments = sim.fragments();
+        r.final_large_fragments = events(sim).large_block_fragments;
+    };
+    let key = fork.is_some().then(|| fork_key(scene));
+    // The last state the other variant can go on from, and the check after it.
+    let mut candidate: Option<(crate::sim::SimState, Case3Report, u64)> = None;
+    let mut hand_over = |candidate: &mut Option<(crate::sim::SimState, Case3Report, u64)>| {
+        if let (Some(f), Some(key), Some((state, report, next_check))) =
+            (fork.as_mut(), key.as_ref(), candidate.take())
+        {
+            f(Case3Fork {
+                scene: key.clone(),
+                schedule: (end_time, interval, check),
+                state,
+                report,
+                next_check,
+            });
+        }
+    };
+    for k in first_check..=n_checks {
         let t = end_time * k as f64 / n_checks as f64;
         if let Err(e) = sim.advance_to(t) {
             r.failure_time = Some(sim.time());
@@ -391,14 +530,18 @@ pub fn case3_report_with(
         if k % per_sample == 0 || k == n_checks {
             r.history.push(sample(&sim));
         }
+        if key.is_some() && k < n_checks {
+            if sim.same_body_touches() == 0 {
+                let mut at = r.clone();
+                finish(&mut at, &sim);
+                candidate = Some((sim.state(), at, k + 1));
+            } else {
+                hand_over(&mut candidate);
+            }
+        }
     }
-    r.end_time = sim.time();
-    r.steps = sim.steps();
-    r.contact_searches = sim.contact_searches();
-    r.strain_tests = sim.strain_tests();
-    r.final_broken_bonds = sim.broken_bonds();
-    r.final_fragments = sim.fragments();
-    r.final_large_fragments = events(&sim).large_block_fragments;
+    hand_over(&mut candidate);
+    finish(&mut r, &sim);
     r.wall_time_s = t0.elapsed().as_secs_f64();
     Ok(r)
 }
@@ -469,6 +612,11 @@ pub fn case3_text(r: &Case3Report) -> String {
     );
     if let Some(m) = &r.failure {
         s += &format!("  message: {m}\n");
+    }
+    if let Some(t) = r.resumed_from {
+        s += &format!(
+            "  (the same run as the other variant's to t = {t:.4} s, before any pair of one body touched: went on from its state there; the wall time is of the rest)\n"
+        );
     }
     s += &format!(
         "  broken bonds {}, fragments {} ({} of the block with >= {} particles)\n",

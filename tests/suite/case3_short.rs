@@ -77,3 +77,54 @@ fn second_order_mirrors_the_block_across_its_clamped_faces() {
         assert!(corrected.boundaries.iter().all(|b| b.mirror.is_none()));
     }
 }
+
+/// The main job runs case 3's variant without fractured-surface contact on from the other's
+/// state where they part (`case3_report_forking`, `case3_report_resumed`): its report must be
+/// the one of a run from the start, to the bit (all but its wall time, where it started and
+/// the one contact search of resuming), and the fork must come before the variants differ.
+#[test]
+#[ignore = "slow (7 s): the full test command runs it"]
+fn the_contact_off_variant_resumed_from_the_fork_is_the_run_from_the_start() {
+    use mps_solid::studies::case3::{
+        case3_report_forking, case3_report_resumed, case3_report_with,
+    };
+    // Half the paper's spacing's cost (dp = 0.0625 m: 2,560 particles): bonds break from
+    // 0.35 s, the fractured surfaces touch at 0.52 s; to 0.7 s.
+    let (dp, end) = (0.0625, 0.7);
+    let on = case3_scene(dp, true, ElasticModel::Corrected);
+    let off = case3_scene(dp, false, ElasticModel::Corrected);
+    let mut fork = None;
+    let r_on =
+        case3_report_forking(&on, end, 0.01, 0.0025, |_, _| {}, &mut |f| fork = Some(f)).unwrap();
+    let fork = fork.expect("a fork is offered");
+    let t_fork = fork.time();
+    // Taken where a pair of one body first touched, after bonds broke (not at the end).
+    let touched = r_on
+        .first_fractured_surface_contact
+        .expect("fractured surfaces touch");
+    assert!(
+        t_fork < touched && t_fork > r_on.first_fracture.unwrap(),
+        "fork at {t_fork} s"
+    );
+    let resumed = case3_report_resumed(&off, fork, |_, _| {}).unwrap();
+    let full = case3_report_with(&off, end, 0.01, 0.0025, |_, _| {}).unwrap();
+    assert_eq!(resumed.resumed_from, Some(t_fork));
+    let strip = |r: &mps_solid::studies::case3::Case3Report| {
+        let mut r = r.clone();
+        r.wall_time_s = 0.0;
+        r.resumed_from = None;
+        r.contact_searches = 0;
+        r
+    };
+    assert_eq!(strip(&resumed), strip(&full));
+    // Resuming builds the pair list once more (a fresh build, then the restore's); the
+    // schedule of searches after it may differ by a few (the skin counts from the last build).
+    let (a, b) = (
+        resumed.contact_searches as i64,
+        full.contact_searches as i64,
+    );
+    assert!(
+        (a - b).abs() <= 3,
+        "contact searches: resumed {a}, from the start {b}"
+    );
+}

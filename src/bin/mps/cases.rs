@@ -8,11 +8,14 @@
 use super::progress;
 use indicatif::{MultiProgress, ProgressBar};
 use mps_solid::physics::ElasticModel;
-use mps_solid::studies::case3::{case3_report_with, case3_scene, case3_text, CheckPoint, CASE3_DP};
+use mps_solid::studies::case3::{
+    case3_report_forking, case3_report_resumed, case3_report_with, case3_scene, case3_text,
+    Case3Fork, CheckPoint, CASE3_DP,
+};
 use mps_solid::studies::cases::{case1_scene, case2_scene, Support};
 use mps_solid::studies::report;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::sync::{mpsc, Condvar, Mutex};
 
 /// One run of the main job.
 #[derive(Clone, Copy, Debug)]
@@ -48,7 +51,10 @@ impl CaseRun {
             CaseRun::Beam(_, ElasticModel::PaperLocal) => 14.5,
             CaseRun::Beam(_, ElasticModel::Paper) => 13.0,
             CaseRun::Beam(..) => 6.0,
-            CaseRun::Collision(_) => 26.0 * s.case3_end / 1.7,
+            // The variant without fractured-surface contact goes on from the other's state
+            // where they part (0.47 s of its 1.65 s): it comes after it.
+            CaseRun::Collision(true) => 26.0 * s.case3_end / 1.7,
+            CaseRun::Collision(false) => 19.0 * s.case3_end / 1.7,
         }
     }
 
@@ -61,7 +67,7 @@ impl CaseRun {
     }
 
     /// Runs it, reporting its progress on `pb`.
-    fn run(&self, s: &CaseSettings, pb: &ProgressBar) -> RunResult {
+    fn run(&self, s: &CaseSettings, pb: &ProgressBar, handoff: &Handoff) -> RunResult {
         let at = |t: f64| pb.set_position((t * 1e6) as u64);
         let done = |r: Result<(String, serde_json::Value), String>, label: String| match r {
             Ok((text, v)) => RunResult {
@@ -100,16 +106,93 @@ impl CaseRun {
                     scene.solver.dt = s.dt;
                 }
                 pb.set_length((s.case3_end * 1e6) as u64);
+                let on_check = |sim: &mps_solid::Simulation, kind| {
+                    if kind == CheckPoint::Regular {
+                        at(sim.time())
+                    }
+                };
                 let r = scene.validate().map_err(|e| e.to_string()).and_then(|()| {
-                    case3_report_with(&scene, s.case3_end, 0.01, 0.0025, |sim, kind| {
-                        if kind == CheckPoint::Regular {
-                            at(sim.time())
+                    if fc {
+                        // The two variants are the same until a pair of one body touches:
+                        // the other goes on from this run's state there. Closed however this
+                        // run ends, so that the other never waits for nothing.
+                        struct Close<'a>(&'a Handoff);
+                        impl Drop for Close<'_> {
+                            fn drop(&mut self) {
+                                self.0.close()
+                            }
                         }
-                    })
+                        let _close = Close(handoff);
+                        case3_report_forking(
+                            &scene,
+                            s.case3_end,
+                            0.01,
+                            0.0025,
+                            on_check,
+                            &mut |f| handoff.offer(f),
+                        )
+                    } else {
+                        match handoff.wait() {
+                            Some(f) => case3_report_resumed(&scene, f, on_check),
+                            None => case3_report_with(&scene, s.case3_end, 0.01, 0.0025, on_check),
+                        }
+                    }
                 });
                 let r = r.and_then(|r| Ok((case3_text(&r), to_json(&r)?)));
                 done(r, format!("case 3 {}", scene.name))
             }
+        }
+    }
+}
+
+/// Case 3's fork from the run with fractured-surface contact to the run without
+/// (`case3_report_forking`): offered once, taken once.
+pub struct Handoff {
+    slot: Mutex<Fork>,
+    ready: Condvar,
+}
+
+enum Fork {
+    /// The contact-on run has not offered it yet.
+    Pending,
+    Ready(Box<Case3Fork>),
+    /// None will come (no contact-on run, or it ended without one): run from the start.
+    None,
+}
+
+impl Handoff {
+    /// A handoff that waits for a fork when `expected` (the contact-on run is one of the runs).
+    fn new(expected: bool) -> Self {
+        Handoff {
+            slot: Mutex::new(if expected { Fork::Pending } else { Fork::None }),
+            ready: Condvar::new(),
+        }
+    }
+
+    fn offer(&self, f: Case3Fork) {
+        let mut slot = self.slot.lock().unwrap_or_else(|e| e.into_inner());
+        *slot = Fork::Ready(Box::new(f));
+        self.ready.notify_all();
+    }
+
+    /// No more offers.
+    fn close(&self) {
+        let mut slot = self.slot.lock().unwrap_or_else(|e| e.into_inner());
+        if matches!(*slot, Fork::Pending) {
+            *slot = Fork::None;
+        }
+        self.ready.notify_all();
+    }
+
+    /// The fork, once offered (None if none will come).
+    fn wait(&self) -> Option<Case3Fork> {
+        let mut slot = self.slot.lock().unwrap_or_else(|e| e.into_inner());
+        while matches!(*slot, Fork::Pending) {
+            slot = self.ready.wait(slot).unwrap_or_else(|e| e.into_inner());
+        }
+        match std::mem::replace(&mut *slot, Fork::None) {
+            Fork::Ready(f) => Some(*f),
+            _ => None,
         }
     }
 }
@@ -131,12 +214,15 @@ pub fn run_all(
     let mut order: Vec<usize> = (0..runs.len()).collect();
     order.sort_by(|&a, &b| runs[b].cost(&s).total_cmp(&runs[a].cost(&s)));
     let next = AtomicUsize::new(0);
+    // The contact-on run is taken before the contact-off one (its cost is higher), so the
+    // latter's wait always has a run to end it.
+    let handoff = Handoff::new(runs.iter().any(|r| matches!(r, CaseRun::Collision(true))));
     let bars = MultiProgress::new();
     let (tx, rx) = mpsc::channel::<(usize, RunResult)>();
     std::thread::scope(|scope| {
         for _ in 0..jobs {
             let tx = tx.clone();
-            let (next, order, bars) = (&next, &order, &bars);
+            let (next, order, bars, handoff) = (&next, &order, &bars, &handoff);
             scope.spawn(move || {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(per_job).build();
                 loop {
@@ -145,8 +231,8 @@ pub fn run_all(
                     let run = runs[idx];
                     let pb = bars.add(progress(1.0, &run.label()));
                     let result = match &pool {
-                        Ok(pool) => pool.install(|| run.run(&s, &pb)),
-                        Err(_) => run.run(&s, &pb),
+                        Ok(pool) => pool.install(|| run.run(&s, &pb, handoff)),
+                        Err(_) => run.run(&s, &pb, handoff),
                     };
                     pb.finish_and_clear();
                     bars.remove(&pb);

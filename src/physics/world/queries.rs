@@ -53,6 +53,12 @@ where
         self.contact.searches
     }
 
+    /// Force evaluations so far in which a pair of one body was within its contact distance
+    /// (`Contact::same_body_touches`): while 0, `contact.fractured_surfaces` has changed nothing.
+    pub fn same_body_touches(&self) -> u64 {
+        self.contact.same_body_touches
+    }
+
     /// Surface flag of particle i, Eq. (41) (or lost a bond, Eq. (42)).
     pub fn is_surface(&self, i: usize) -> bool {
         self.contact.surface[i]

@@ -29,8 +29,9 @@ pub enum StudyCmd {
         /// Fixed time step (s) instead of the automatic one (the paper uses 1e-5), all cases.
         #[arg(long)]
         dt: Option<f64>,
-        /// End time of case 3 (s); the paper's is 1.7 (both variants, side by side: about 27 s
-        /// on 2 cores).
+        /// End time of case 3 (s); the paper's is 1.7 (both variants, side by side, the one
+        /// without fractured-surface contact going on from the other's state where they part:
+        /// about 25 s on 2 cores).
         #[arg(long, default_value_t = 1.7)]
         case3_end: f64,
         /// Print JSON instead of tables.

@@ -324,15 +324,7 @@ pub fn case3_report_with(
     check: f64,
     on_check: impl FnMut(&Simulation, CheckPoint),
 ) -> Result<Case3Report, String> {
-    let sim = Simulation::new(scene).map_err(|e| e.to_string())?;
-    case3_drive(
-        scene,
-        sim,
-        None,
-        (end_time, interval, check),
-        on_check,
-        None,
-    )
+    case3_from_start(scene, (end_time, interval, check), on_check, None)
 }
 
 /// A case 3 run stopped at an event check, from which a run of the same scene with the other
@@ -368,15 +360,18 @@ pub fn case3_report_forking(
     on_check: impl FnMut(&Simulation, CheckPoint),
     fork: &mut dyn FnMut(Case3Fork),
 ) -> Result<Case3Report, String> {
+    case3_from_start(scene, (end_time, interval, check), on_check, Some(fork))
+}
+
+/// A case 3 run from its scene's start (`case3_drive`).
+fn case3_from_start(
+    scene: &Scene,
+    schedule: (f64, f64, f64),
+    on_check: impl FnMut(&Simulation, CheckPoint),
+    fork: Option<&mut dyn FnMut(Case3Fork)>,
+) -> Result<Case3Report, String> {
     let sim = Simulation::new(scene).map_err(|e| e.to_string())?;
-    case3_drive(
-        scene,
-        sim,
-        None,
-        (end_time, interval, check),
-        on_check,
-        Some(fork),
-    )
+    case3_drive(scene, sim, None, schedule, on_check, fork)
 }
 
 /// Runs `scene` on from `fork`, taken in a run of the same scene with the other

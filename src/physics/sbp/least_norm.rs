@@ -33,8 +33,10 @@ pub(super) struct NullSpaceConstraints<'a, const D: usize> {
     mirror: Vec<u32>,
     /// Monomials of every bond's r0 / l0 (quad_len(D) per bond).
     mono: Vec<f64>,
-    /// Inverse Gram matrix of each row's monomials.
-    gram_inv: &'a [nalgebra::DMatrix<f64>],
+    /// Inverse Gram matrix of each row's monomials, column-major (quad_len(D)^2 per row, as
+    /// nalgebra stores it): contiguous, so that the projection's loops have constant trip
+    /// counts and no bounds checks (it is most of a closure's set-up).
+    gram_inv: Vec<f64>,
     l0: f64,
     nq: usize,
     /// Diagonal of A P A^T.
@@ -82,7 +84,10 @@ where
             bonds,
             mirror: second_order::mirror_index(bonds),
             mono,
-            gram_inv,
+            gram_inv: gram_inv
+                .iter()
+                .flat_map(|g| g.as_slice().iter().copied())
+                .collect(),
             l0,
             nq,
             diag: vec![0.0; n * nq],
@@ -110,11 +115,11 @@ where
         // preconditioner need not be exact.
         let keep = |b: usize, i: usize| -> f64 {
             let mb = &sys.mono[b * m..(b + 1) * m];
-            let g = &sys.gram_inv[i];
+            let g = &sys.gram_inv[i * m * m..(i + 1) * m * m];
             let mut s = 0.0;
             for r in 0..m {
                 for c in 0..m {
-                    s += mb[r] * g[(r, c)] * mb[c];
+                    s += mb[r] * g[c * m + r] * mb[c];
                 }
             }
             1.0 - s
@@ -175,25 +180,28 @@ where
         sys
     }
 
+    /// c -= (the part of c in the span of row i's monomials): c P_i, with P_i = I - M (M^T
+    /// M)^-1 M^T over its bonds. The loops run over constant counts (quad_len(D) values per
+    /// bond) with the sums in a fixed order.
     fn project_row(&self, i: usize, c: &mut [f64]) {
         let m = quad_len(D);
         let start = self.bonds.start[i] as usize;
+        let mono = &self.mono[start * m..(start + c.len()) * m];
         let mut pc = [0.0; 9];
-        for (k, v) in c.iter().enumerate() {
-            let mb = &self.mono[(start + k) * m..(start + k + 1) * m];
+        for (mb, v) in mono.chunks_exact(m).zip(c.iter()) {
             for r in 0..m {
                 pc[r] += mb[r] * v;
             }
         }
-        let g = &self.gram_inv[i];
+        let g = &self.gram_inv[i * m * m..(i + 1) * m * m];
         let mut lam = [0.0; 9];
-        for r in 0..m {
-            for c2 in 0..m {
-                lam[r] += g[(r, c2)] * pc[c2];
+        // lam_r = sum_c g_rc pc_c, c ascending for every r (the columns of g are contiguous).
+        for (col, &p) in g.chunks_exact(m).zip(&pc) {
+            for r in 0..m {
+                lam[r] += col[r] * p;
             }
         }
-        for (k, v) in c.iter_mut().enumerate() {
-            let mb = &self.mono[(start + k) * m..(start + k + 1) * m];
+        for (mb, v) in mono.chunks_exact(m).zip(c.iter_mut()) {
             let mut s = 0.0;
             for r in 0..m {
                 s += mb[r] * lam[r];
@@ -412,9 +420,11 @@ where
             rest = tail;
         }
         par_iter_mut!(rows).enumerate().for_each(|(i, row)| {
+            let m = quad_len(D);
             for (k, b) in self.bonds.of(i).enumerate() {
                 let j = self.bonds.nbr[b] as usize;
-                let r = self.bonds.r0[b] / self.l0;
+                // r0 / l0: the monomials' linear part.
+                let r = &self.mono[b * m..b * m + D];
                 let mut s = y[j * nq] - y[i * nq];
                 for a in 0..D {
                     s -= y[j * nq + 1 + a] * r[a];
@@ -454,9 +464,10 @@ where
         let mut cols: Vec<&mut [f64]> = y.chunks_mut(nq).collect();
         par_iter_mut!(cols).enumerate().for_each(|(k, yk)| {
             yk.iter_mut().for_each(|v| *v = 0.0);
+            let m = quad_len(D);
             for b in self.bonds.of(k) {
                 let cin = c[self.mirror[b] as usize];
-                let r = self.bonds.r0[b] / self.l0;
+                let r = &self.mono[b * m..b * m + D];
                 yk[0] += cin - c[b];
                 for a in 0..D {
                     yk[1 + a] += cin * r[a];

@@ -181,33 +181,12 @@ where
     }
 
     /// c -= (the part of c in the span of row i's monomials): c P_i, with P_i = I - M (M^T
-    /// M)^-1 M^T over its bonds. The loops run over constant counts (quad_len(D) values per
-    /// bond) with the sums in a fixed order.
+    /// M)^-1 M^T over its bonds.
     fn project_row(&self, i: usize, c: &mut [f64]) {
         let m = quad_len(D);
         let start = self.bonds.start[i] as usize;
         let mono = &self.mono[start * m..(start + c.len()) * m];
-        let mut pc = [0.0; 9];
-        for (mb, v) in mono.chunks_exact(m).zip(c.iter()) {
-            for r in 0..m {
-                pc[r] += mb[r] * v;
-            }
-        }
-        let g = &self.gram_inv[i * m * m..(i + 1) * m * m];
-        let mut lam = [0.0; 9];
-        // lam_r = sum_c g_rc pc_c, c ascending for every r (the columns of g are contiguous).
-        for (col, &p) in g.chunks_exact(m).zip(&pc) {
-            for r in 0..m {
-                lam[r] += col[r] * p;
-            }
-        }
-        for (mb, v) in mono.chunks_exact(m).zip(c.iter_mut()) {
-            let mut s = 0.0;
-            for r in 0..m {
-                s += mb[r] * lam[r];
-            }
-            *v -= s;
-        }
+        project::<D>(mono, &self.gram_inv[i * m * m..(i + 1) * m * m], c);
     }
 
     /// The coarse space of the two-level preconditioner: Legendre polynomial fields over the
@@ -607,6 +586,37 @@ impl Unfinished {
             iterations: n,
             above_goal: now / goal,
             more_seconds: more * per_iteration,
+        }
+    }
+}
+
+crate::physics::cpu_versions! {
+    /// The projection of a row (`NullSpaceConstraints::project_row`): c -= M lam with
+    /// lam = G (M^T c), `mono` its bonds' monomials (quad_len(D) each), `g` the inverse of its
+    /// Gram matrix (column-major). Loops of constant trip count, each sum in a fixed order and
+    /// no fused operations, so that every compiled version (AVX2 and AVX-512 where the CPU has
+    /// them: the closure's solve is mostly this) gives the same bits.
+    fn project<const D: usize>(mono: &[f64], g: &[f64], c: &mut [f64]) {
+        let m = quad_len(D);
+        let mut pc = [0.0; 9];
+        for (mb, v) in mono.chunks_exact(m).zip(c.iter()) {
+            for r in 0..m {
+                pc[r] += mb[r] * v;
+            }
+        }
+        let mut lam = [0.0; 9];
+        // lam_r = sum_c g_rc pc_c, c ascending for every r (the columns of g are contiguous).
+        for (col, &p) in g.chunks_exact(m).zip(&pc) {
+            for r in 0..m {
+                lam[r] += col[r] * p;
+            }
+        }
+        for (mb, v) in mono.chunks_exact(m).zip(c.iter_mut()) {
+            let mut s = 0.0;
+            for r in 0..m {
+                s += mb[r] * lam[r];
+            }
+            *v -= s;
         }
     }
 }

@@ -556,7 +556,22 @@ where
             clamped.insert((si, a, out[a].signum() as i8));
         }
     }
-    let sys = NullSpaceConstraints::new(&vb, &row_gram, l0, D + 1, tie, &vx, stop);
+    // The axes normal to a clamped face: their targets reach the operator's smoothest fields
+    // (the clamp breaks the box's symmetry along them), which the coarse space serves.
+    let clamped_axes: Vec<bool> = (0..D)
+        .map(|d| clamped.iter().any(|&(_, a, _)| a == d))
+        .collect();
+    let tied = classes.len() < tie.len();
+    let sys = NullSpaceConstraints::new(
+        &vb,
+        &row_gram,
+        l0,
+        D + 1,
+        tie,
+        &vx,
+        clamped_axes.iter().any(|&c| c),
+        stop,
+    );
     let nb = vb.len();
     let mut figures = Vec::new();
     let mut targets = Vec::with_capacity(D);
@@ -638,8 +653,11 @@ where
     // The Hessian weights of the virtual body served the targets only: freed before the
     // solves, the peak of the closure (issue 25).
     vso.h = Vec::new();
-    let solve = |t: &Vec<f64>| sys.solve(t, stop);
-    let solved: Vec<_> = crate::physics::par::map(&targets, solve);
+    // On a box solved whole every axis takes the coarse correction; on a reduced one the
+    // clamped axes only.
+    let axes: Vec<(usize, &Vec<f64>)> = targets.iter().enumerate().collect();
+    let solve = |&(d, t): &(usize, &Vec<f64>)| sys.solve(t, !tied || clamped_axes[d], stop);
+    let solved: Vec<_> = crate::physics::par::map(&axes, solve);
     if solved.iter().any(|s| s.is_err()) {
         // The slowest axis says how long the closure still needs (they run side by side).
         let (d, u) = solved

@@ -65,6 +65,7 @@ impl<'a, const D: usize> NullSpaceConstraints<'a, D>
 where
     Space: Dim<D>,
 {
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         bonds: &'a Bonds<D>,
         gram_inv: &'a [nalgebra::DMatrix<f64>],

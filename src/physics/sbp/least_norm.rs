@@ -68,7 +68,7 @@ where
     #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         bonds: &'a Bonds<D>,
-        gram_inv: &'a [nalgebra::DMatrix<f64>],
+        gram_inv: Vec<nalgebra::DMatrix<f64>>,
         l0: f64,
         nq: usize,
         tie: Vec<u32>,
@@ -77,6 +77,12 @@ where
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Self {
         let m = quad_len(D);
+        // The inverses moved into one array first (each matrix freed as it is copied), before
+        // the larger arrays below: the closure's memory peak stays where it was.
+        let mut gram_flat = Vec::with_capacity(gram_inv.len() * m * m);
+        for g in gram_inv {
+            gram_flat.extend_from_slice(g.as_slice());
+        }
         let mut mono = Vec::with_capacity(bonds.len() * m);
         let mut tmp = Vec::with_capacity(m);
         for b in 0..bonds.len() {
@@ -88,10 +94,7 @@ where
             bonds,
             mirror: second_order::mirror_index(bonds),
             mono,
-            gram_inv: gram_inv
-                .iter()
-                .flat_map(|g| g.as_slice().iter().copied())
-                .collect(),
+            gram_inv: gram_flat,
             l0,
             nq,
             diag: vec![0.0; n * nq],

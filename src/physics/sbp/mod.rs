@@ -564,7 +564,7 @@ where
     let tied = classes.len() < tie.len();
     let sys = NullSpaceConstraints::new(
         &vb,
-        &row_gram,
+        row_gram,
         l0,
         D + 1,
         tie,
@@ -704,6 +704,8 @@ where
             }
         }
     }
+    // The solves' arrays are not needed for the copy-back: freed before its rows are made.
+    drop(sys);
     // Back to the world's bonds of the real particles, by layer class: each particle's world
     // bonds looked up by lattice offset (a key on a quarter-spacing grid) among its class's
     // row, sorted for the particle at hand (a hash map of heap-allocated keys per particle
@@ -712,7 +714,7 @@ where
     let key = |r: &Vect<D>| -> [i64; D] { std::array::from_fn(|a| round(r[a] / l0 * 4.0) as i64) };
     // Each particle's row (with the largest correction of its class that has no bond of the
     // particle), computed in parallel a chunk at a time and interned in particle order: serially
-    // this was 1.9 s of a 10^6-particle cube's set-up; a chunk's rows are a few MB.
+    // this was 1.9 s of a 10^6-particle cube's set-up; a chunk's rows are under 1 MB.
     let row_of = |vi: usize, i: usize| -> Result<(Vec<f64>, f64), String> {
         let k = full_idx[vi];
         let Some(&si) = small_index.get(&std::array::from_fn(|a| small_of(a, k[a]))) else {
@@ -743,7 +745,7 @@ where
     };
     // Each particle's row straight into `out.dg` (a list of the updates first would hold 32 B
     // per bond of the body, issue 25), and cleared again if a correction has no bond.
-    const CHUNK: usize = 4096;
+    const CHUNK: usize = 1024;
     let mut lost = 0.0f64;
     let order: Vec<(usize, usize)> = real.iter().copied().enumerate().collect();
     for chunk in order.chunks(CHUNK) {

@@ -312,8 +312,12 @@ where
             key.clear();
             for b in bonds.of(i) {
                 key.extend((0..D).map(|a| round(bonds.r0[b][a] / l0 * q) as i64));
-                key.push(so.weight(bonds, b).to_bits() as i64);
-                key.push(bonds.w0[b].to_bits() as i64);
+                // Whether the bond has a weight, not its value: a quadratic fit's refresh reads
+                // the weights only as zero or not (the snapped r0 gives the rest), and the
+                // weights' bits vary with the particles' absolute positions (a 60^3 cube:
+                // 53,433 kinds with the bits, 3,155 without).
+                key.push((so.weight(bonds, b) != 0.0) as i64);
+                key.push((bonds.w0[b] != 0.0) as i64);
             }
             key.push(so.closure_dg.class.get(i).copied().unwrap_or(u32::MAX) as i64);
         };
@@ -361,7 +365,14 @@ where
             if !self.closable[i] {
                 continue;
             }
-            match same_kind.get(i).copied().flatten() {
+            // A representative that took the first-order fallback (which reads the weights'
+            // values and the exact r0) stands for no one.
+            match same_kind
+                .get(i)
+                .copied()
+                .flatten()
+                .filter(|&r| self.quadratic[r as usize])
+            {
                 Some(r) => {
                     let r = r as usize;
                     self.quadratic[i] = self.quadratic[r];

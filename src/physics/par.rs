@@ -169,6 +169,21 @@ pub fn map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync + Send) -> 
     out.into_iter().flatten().collect()
 }
 
+/// Elements per part of [`sum`]: its parts, and so its bits, do not depend on the thread count.
+const SUM_CHUNK: usize = 4096;
+
+/// The sum of `f(i)` for i in 0..n, in parallel: each part of `SUM_CHUNK` consecutive indices
+/// summed in order, the parts' sums added in order. The same bits on any number of threads (not
+/// those of one sum in order over 0..n).
+pub fn sum(n: usize, f: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
+    let starts: Vec<usize> = (0..n).step_by(SUM_CHUNK).collect();
+    map(&starts, |&s| {
+        (s..(s + SUM_CHUNK).min(n)).map(&f).sum::<f64>()
+    })
+    .into_iter()
+    .sum()
+}
+
 /// Splits `p` into `parts` nearly equal consecutive parts.
 fn split<P: Producer>(p: P, parts: usize) -> Vec<P> {
     let mut out = Vec::with_capacity(parts);

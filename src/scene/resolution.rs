@@ -75,7 +75,9 @@ where
     let mut rank_of = vec![D; nb];
     let mut any_full = false;
     let mut any_flat = 0usize;
-    for (i, p) in pts.iter().enumerate() {
+    // Per particle, in parallel: its bond count and the eigenpairs of its shape tensor where
+    // that is singular (the directions it lacks); tallied per box in particle order.
+    let per_particle = crate::physics::par::map(pts, |p| {
         let mut count = 0usize;
         let mut shape = Mat::<D>::zeros();
         grid.for_each_near(pts, p, re, |j| {
@@ -85,6 +87,26 @@ where
                 shape += r * r.transpose() / r.norm_squared();
             }
         });
+        if count == 0 {
+            return (count, None);
+        }
+        let (vals, vecs) = sym_eigen(&shape);
+        let top = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let weak: Vec<usize> = (0..D).filter(|&e| vals[e].abs() <= 1e-10 * top).collect();
+        if weak.is_empty() {
+            return (count, None);
+        }
+        // Per weak direction: the axis it lies along, if any.
+        let dirs: Vec<Option<usize>> = weak
+            .iter()
+            .map(|&e| {
+                let dir = vecs.column(e);
+                (0..D).find(|&a| dir[a].abs() > 1.0 - 1e-6)
+            })
+            .collect();
+        (count, Some(dirs))
+    });
+    for (i, (count, weak)) in per_particle.into_iter().enumerate() {
         any_full |= count >= full;
         let bx = box_of[i] as usize;
         if count == 0 {
@@ -92,18 +114,14 @@ where
             any_flat += 1;
             continue;
         }
-        let (vals, vecs) = sym_eigen(&shape);
-        let top = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let weak: Vec<usize> = (0..D).filter(|&e| vals[e].abs() <= 1e-10 * top).collect();
-        if weak.is_empty() {
+        let Some(dirs) = weak else {
             continue;
-        }
+        };
         flat[bx] += 1;
         any_flat += 1;
-        rank_of[bx] = rank_of[bx].min(D - weak.len());
-        for e in weak {
-            let dir = vecs.column(e);
-            match (0..D).find(|&a| dir[a].abs() > 1.0 - 1e-6) {
+        rank_of[bx] = rank_of[bx].min(D - dirs.len());
+        for d in dirs {
+            match d {
                 Some(a) => missing[bx][a] = true,
                 None => oblique[bx] = true,
             }

@@ -210,7 +210,9 @@ impl Instance {
         ));
         // Under-resolved geometry: from the particles alone (the parameters change no geometry),
         // so it is known here, before the model is built.
-        for w in inst.scene.warnings() {
+        // On the instance's threads: the check runs parallel loops, which must not start
+        // rayon's global pool (its threads would outlive the instance).
+        for w in inst.pool.install(|| inst.scene.warnings()) {
             inst.log.warn(w.to_string());
         }
         Ok(inst)
@@ -339,7 +341,7 @@ impl Instance {
         ));
         // What only the built model knows (the scene's own warnings were logged at
         // instantiation): second-order bodies without the closure at their free faces.
-        let known = self.scene.warnings();
+        let known = self.pool.install(|| self.scene.warnings());
         for w in sim.warnings() {
             if !known.contains(w) {
                 self.log.warn(w.to_string());

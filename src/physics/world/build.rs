@@ -582,7 +582,9 @@ where
         // to 0.77 %), and the current configuration (large deflection) adds 1-2 %; the margin
         // covers both so that safety = 1 is stable. No eigenvector is kept: the first refresh
         // (a deforming body) measures from the deterministic start.
-        let omega = world.lanczos_omega_max(LANCZOS_ITERATIONS);
+        let scratch = std::mem::take(&mut world.scratch);
+        let (omega, scratch) = world.lanczos_omega_max_in(LANCZOS_ITERATIONS, scratch);
+        world.scratch = scratch;
         world.omega_elastic = omega * (1.0 + OMEGA_MARGIN);
         world.omega_reference = world.omega_elastic;
         world.stable = StableStepState {

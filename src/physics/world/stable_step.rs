@@ -1,9 +1,11 @@
 //! The stable step: omega_max measured by the Lanczos process (set-up) and power iteration
 //! (its refresh in the current configuration) as the body deforms, and the step it allows.
 use super::World;
+use crate::par_iter_mut;
 use crate::physics::dim::{Dim, Space, Vect};
 use crate::physics::elastic::ElasticScratch;
 use crate::physics::integrate::critical_step;
+use crate::physics::par::Producer;
 use crate::physics::params::ElasticModel;
 use crate::physics::particles::{Particles, FIX_AXIS, FIX_ROT};
 use serde::{Deserialize, Serialize};
@@ -109,19 +111,19 @@ where
             acc
         };
         let rotational = self.rotational();
-        (
-            (0..n).map(|i| bond_mix(i, 1)).collect(),
-            (0..n)
-                .map(|i| {
-                    if rotational {
-                        let a = <Space as Dim<D>>::cross(&bond_mix(i, 2), &bond_mix(i, 3));
-                        <Space as Dim<D>>::ang_scale(a, 1.0 / self.l0)
-                    } else {
-                        <Space as Dim<D>>::ang_zero()
-                    }
-                })
-                .collect(),
-        )
+        let mut t = vec![Vect::<D>::zeros(); n];
+        let mut r = vec![<Space as Dim<D>>::ang_zero(); n];
+        par_iter_mut!(t)
+            .zip(par_iter_mut!(r))
+            .enumerate()
+            .for_each(|(i, (t, r))| {
+                *t = bond_mix(i, 1);
+                if rotational {
+                    let a = <Space as Dim<D>>::cross(&bond_mix(i, 2), &bond_mix(i, 3));
+                    *r = <Space as Dim<D>>::ang_scale(a, 1.0 / self.l0);
+                }
+            });
+        (t, r)
     }
 
     /// Whether the elastic model has rotational degrees of freedom (the paper models).
@@ -139,19 +141,49 @@ where
     /// iteration's Rayleigh quotient, but from the whole Krylov space of its iterates, so in
     /// far fewer evaluations (the top of a particle model's spectrum is dense: 80 power
     /// iterations left omega 0.5 % short in 3D). Constrained degrees of freedom are excluded.
-    pub(super) fn lanczos_omega_max(&self, iterations: usize) -> f64 {
-        self.lanczos_omega_max_from(iterations, self.start_vector())
+    /// The forces are evaluated on the buffers `scratch`, returned after (the set-up hands over
+    /// the world's own, so that the initial forces find them allocated: at 10^6 particles their
+    /// first touch costs about as much as a force evaluation).
+    pub(super) fn lanczos_omega_max_in(
+        &self,
+        iterations: usize,
+        scratch: ElasticScratch<D>,
+    ) -> (f64, ElasticScratch<D>) {
+        self.lanczos_in(iterations, self.start_vector(), scratch)
     }
 
-    /// [`World::lanczos_omega_max`] from the start vector `start` (translations, rotations).
+    /// [`World::lanczos_omega_max_in`] from the start vector `start` (translations, rotations),
+    /// on buffers of its own.
     #[allow(clippy::type_complexity)]
     pub fn lanczos_omega_max_from(
         &self,
         iterations: usize,
         start: (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>),
     ) -> f64 {
+        self.lanczos_in(iterations, start, ElasticScratch::default())
+            .0
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn lanczos_in(
+        &self,
+        iterations: usize,
+        start: (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>),
+        scratch: ElasticScratch<D>,
+    ) -> (f64, ElasticScratch<D>) {
+        let mut op = LinearProbe::new(self, false, scratch);
+        let omega = self.lanczos_run(iterations, start, &mut op);
+        (omega, op.scratch)
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn lanczos_run(
+        &self,
+        iterations: usize,
+        start: (Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>),
+        op: &mut LinearProbe<D>,
+    ) -> f64 {
         let n = self.len();
-        let mut op = LinearProbe::new(self, false);
         let (mut vt, mut vr) = start;
         op.mask(&self.p, &mut vt, &mut vr);
         let nv = op.norm_m(&self.p, &vt, &vr);
@@ -169,21 +201,27 @@ where
             let a = op.dot_m(&self.p, &vt, &vr, &wt, &wr);
             // w -= a v + beta_prev v_prev, and once more against v (local reorthogonalisation:
             // the finite-difference operator is symmetric only to about 1e-9).
-            for i in 0..n {
-                wt[i] -= vt[i] * a + pt[i] * beta_prev;
-                wr[i] = <Space as Dim<D>>::ang_add(
-                    wr[i],
-                    <Space as Dim<D>>::ang_add(
-                        <Space as Dim<D>>::ang_scale(vr[i], -a),
-                        <Space as Dim<D>>::ang_scale(pr[i], -beta_prev),
-                    ),
-                );
-            }
+            par_iter_mut!(wt)
+                .zip(par_iter_mut!(wr))
+                .enumerate()
+                .for_each(|(i, (wt, wr))| {
+                    *wt -= vt[i] * a + pt[i] * beta_prev;
+                    *wr = <Space as Dim<D>>::ang_add(
+                        *wr,
+                        <Space as Dim<D>>::ang_add(
+                            <Space as Dim<D>>::ang_scale(vr[i], -a),
+                            <Space as Dim<D>>::ang_scale(pr[i], -beta_prev),
+                        ),
+                    );
+                });
             let c = op.dot_m(&self.p, &vt, &vr, &wt, &wr);
-            for i in 0..n {
-                wt[i] -= vt[i] * c;
-                wr[i] = <Space as Dim<D>>::ang_add(wr[i], <Space as Dim<D>>::ang_scale(vr[i], -c));
-            }
+            par_iter_mut!(wt)
+                .zip(par_iter_mut!(wr))
+                .enumerate()
+                .for_each(|(i, (wt, wr))| {
+                    *wt -= vt[i] * c;
+                    *wr = <Space as Dim<D>>::ang_add(*wr, <Space as Dim<D>>::ang_scale(vr[i], -c));
+                });
             if !(a + c).is_finite() {
                 // Non-finite forces (the power iteration's Rayleigh quotient came out as 0
                 // then too): no measurement.
@@ -252,7 +290,7 @@ where
         warm: (&[Vect<D>], &[<Space as Dim<D>>::Ang]),
     ) -> (f64, Vec<Vect<D>>, Vec<<Space as Dim<D>>::Ang>) {
         let n = self.len();
-        let mut op = LinearProbe::new(self, true);
+        let mut op = LinearProbe::new(self, true, ElasticScratch::default());
         // The previous eigenvector plus as much of the deterministic start vector (in the
         // mass norm): a mode that has become the stiffest elsewhere in the body (a fold
         // forming) still has weight in the start.
@@ -400,9 +438,8 @@ impl<const D: usize> LinearProbe<D>
 where
     Space: Dim<D>,
 {
-    fn new(world: &World<D>, about_current: bool) -> Self {
+    fn new(world: &World<D>, about_current: bool, mut scratch: ElasticScratch<D>) -> Self {
         let n = world.len();
-        let mut scratch = ElasticScratch::default();
         let base = about_current.then(|| {
             let mut f0 = vec![Vect::<D>::zeros(); n];
             let mut t0 = vec![<Space as Dim<D>>::ang_zero(); n];
@@ -452,12 +489,9 @@ where
         bt: &[Vect<D>],
         br: &[<Space as Dim<D>>::Ang],
     ) -> f64 {
-        (0..at.len())
-            .map(|i| {
-                p.mass[i] * at[i].dot(&bt[i])
-                    + p.inertia[i] * <Space as Dim<D>>::ang_dot(ar[i], br[i])
-            })
-            .sum::<f64>()
+        crate::physics::par::sum(at.len(), |i| {
+            p.mass[i] * at[i].dot(&bt[i]) + p.inertia[i] * <Space as Dim<D>>::ang_dot(ar[i], br[i])
+        })
     }
 
     fn norm_m(&self, p: &Particles<D>, zt: &[Vect<D>], zr: &[<Space as Dim<D>>::Ang]) -> f64 {
@@ -465,10 +499,12 @@ where
     }
 
     fn scale(&self, zt: &mut [Vect<D>], zr: &mut [<Space as Dim<D>>::Ang], s: f64) {
-        for i in 0..zt.len() {
-            zt[i] *= s;
-            zr[i] = <Space as Dim<D>>::ang_scale(zr[i], s);
-        }
+        par_iter_mut!(zt)
+            .zip(par_iter_mut!(zr))
+            .for_each(|(zt, zr)| {
+                *zt *= s;
+                *zr = <Space as Dim<D>>::ang_scale(*zr, s);
+            });
     }
 
     /// out = A z.
@@ -480,37 +516,49 @@ where
         out_t: &mut [Vect<D>],
         out_r: &mut [<Space as Dim<D>>::Ang],
     ) {
-        let n = zt.len();
         let p = &world.p;
         let eps = 1e-7 * world.l0;
-        for i in 0..n {
-            if self.base.is_some() {
-                self.probe.u[i] = p.u[i] + zt[i] * eps;
-                self.probe.q[i] = <Space as Dim<D>>::advance(&p.q[i], &zr[i], eps);
-            } else {
-                self.probe.u[i] = zt[i] * eps;
-                self.probe.q[i] =
-                    <Space as Dim<D>>::advance(&<Space as Dim<D>>::identity(), &zr[i], eps);
-            }
-        }
+        let about_current = self.base.is_some();
+        par_iter_mut!(self.probe.u)
+            .zip(par_iter_mut!(self.probe.q))
+            .enumerate()
+            .for_each(|(i, (u, q))| {
+                if about_current {
+                    *u = p.u[i] + zt[i] * eps;
+                    *q = <Space as Dim<D>>::advance(&p.q[i], &zr[i], eps);
+                } else {
+                    *u = zt[i] * eps;
+                    *q = <Space as Dim<D>>::advance(&<Space as Dim<D>>::identity(), &zr[i], eps);
+                }
+            });
         world
             .op
             .forces(&self.probe, &world.bonds, &mut self.scratch, out_t, out_r);
-        if let Some((f0, t0)) = &self.base {
-            for i in 0..n {
-                out_t[i] -= f0[i];
-                out_r[i] =
-                    <Space as Dim<D>>::ang_add(out_r[i], <Space as Dim<D>>::ang_scale(t0[i], -1.0));
-            }
-        }
-        for i in 0..n {
-            out_t[i] *= -1.0 / (eps * p.mass[i]);
-            out_r[i] = if self.rotational {
-                <Space as Dim<D>>::ang_scale(out_r[i], -1.0 / (eps * p.inertia[i]))
-            } else {
-                <Space as Dim<D>>::ang_zero()
-            };
-        }
-        self.mask(p, out_t, out_r);
+        let base = self.base.as_ref();
+        let rotational = self.rotational;
+        par_iter_mut!(out_t)
+            .zip(par_iter_mut!(out_r))
+            .enumerate()
+            .for_each(|(i, (ft, fr))| {
+                if let Some((f0, t0)) = base {
+                    *ft -= f0[i];
+                    *fr =
+                        <Space as Dim<D>>::ang_add(*fr, <Space as Dim<D>>::ang_scale(t0[i], -1.0));
+                }
+                *ft *= -1.0 / (eps * p.mass[i]);
+                *fr = if rotational {
+                    <Space as Dim<D>>::ang_scale(*fr, -1.0 / (eps * p.inertia[i]))
+                } else {
+                    <Space as Dim<D>>::ang_zero()
+                };
+                for k in 0..D {
+                    if p.fix[i] & FIX_AXIS[k] != 0 {
+                        ft[k] = 0.0;
+                    }
+                }
+                if p.fix[i] & FIX_ROT != 0 {
+                    *fr = <Space as Dim<D>>::ang_zero();
+                }
+            });
     }
 }

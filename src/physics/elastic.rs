@@ -436,8 +436,9 @@ where
         }
         let v = self.volume;
         let d = D as f64;
-        let mut total = 0.0;
-        for i in 0..p.len() {
+        // In parallel, per fixed chunk of particles (the same bits on any number of threads).
+        crate::physics::par::sum(p.len(), |i| {
+            let mut total = 0.0;
             let (mu, lambda) = self.lame[p.body[i] as usize];
             let ui = p.u[i];
             match self.model {
@@ -471,8 +472,8 @@ where
                     }
                 }
             }
-        }
-        total
+            total
+        })
     }
 }
 

@@ -39,7 +39,7 @@ pub struct Energies {
 }
 
 impl Energies {
-    /// The energies of a simulation now (the strain energy is a serial pass over the bonds).
+    /// The energies of a simulation now (the strain energy is a pass over the bonds).
     pub fn of(sim: &Simulation) -> Energies {
         Energies {
             kinetic: sim.kinetic_energy(),
@@ -59,8 +59,8 @@ impl Energies {
 /// What a run records besides the probes, and how it can be stopped.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RunOptions {
-    /// The energies at every output sample (`Series::energy`). Costs a serial pass over the
-    /// bonds per sample (about one solver step on two cores).
+    /// The energies at every output sample (`Series::energy`). Costs a pass over the
+    /// bonds per sample (in parallel; a fraction of a solver step).
     pub energy: bool,
     /// When this flag becomes true (e.g. set by a signal handler), the run stops after the
     /// current solver step as if it had failed there: `RunResult::error` says so and the series

@@ -52,7 +52,7 @@ enum Cmd {
         #[arg(long, default_value = "out")]
         out: PathBuf,
         /// Also write energy.csv: kinetic, strain and contact energy and their sum at every
-        /// output sample (a serial pass over the bonds per sample).
+        /// output sample (a pass over the bonds per sample).
         #[arg(long)]
         energy: bool,
         /// Also write the bodies' surfaces as meshes with their displacements for ParaView:

@@ -757,20 +757,21 @@ where
         // particle's gradient and Hessian are fitted again from the displacements of the last
         // force pass (`ueff` or `p.u`, unchanged since): the same sums in the same order as
         // there, so the same bits as the force pass saw, without keeping the Hessians.
-        (0..s.grad.len())
-            .zip(c.retained)
-            .filter(|(i, _)| !self.rigid[*i])
-            .map(|(i, share)| {
-                let (h, g) = self.fit(bonds, i, |k| uu[k]);
-                share * self.cell_energy(p, bonds, c, i, &h, &g, |k| uu[k])
-            })
-            .sum()
+        // In parallel, per fixed chunk of particles (the same bits on any number of threads).
+        crate::physics::par::sum(s.grad.len(), |i| {
+            if self.rigid[i] {
+                0.0
+            } else {
+                c.retained[i] * fitted_cell_energy(self, p, bonds, c, uu, i)
+            }
+        })
     }
 
     /// Energy of particle i's cell (J) without its retained share, from its gradient `h`,
     /// Hessian `g` and the fits' displacements `uu`: V W(E) + the cell term + the residuals of
     /// its bonds.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn cell_energy(
         &self,
         p: &Particles<D>,
@@ -829,5 +830,26 @@ where
             total += Self::residual_terms(&res, &r0, &du, cres * w0 * (inv * inv)).0;
         }
         total
+    }
+}
+
+crate::physics::cpu_versions! {
+    /// Energy of particle i's cell without its retained share (J), fitted again from the
+    /// displacements `uu` of the last force pass (compiled also for AVX2 and AVX-512 as the
+    /// force pass, whose fused multiply-adds would otherwise be library calls in the baseline
+    /// build: the same bits in every version).
+    fn fitted_cell_energy<const D: usize>(
+        op: &SecondOrder<D>,
+        p: &Particles<D>,
+        bonds: &Bonds<D>,
+        c: &Cells<D>,
+        uu: &[Vect<D>],
+        i: usize,
+    ) -> f64
+    where
+        Space: Dim<D>,
+    {
+        let (h, g) = op.fit(bonds, i, |k| uu[k]);
+        op.cell_energy(p, bonds, c, i, &h, &g, |k| uu[k])
     }
 }

@@ -562,6 +562,7 @@ where
                 eig_r: Vec::new(),
             },
             step_refreshes: 0,
+            lanczos_evaluations: 0,
             step_refresh_seconds: 0.0,
             frac_flag: Vec::new(),
             strain_screen: Default::default(),
@@ -579,12 +580,14 @@ where
         };
         // The largest Ritz value of the Lanczos process approaches omega_max^2 from below: in 3D
         // 20 force evaluations leave omega up to 0.35 % short (80 power iterations, before: up
-        // to 0.77 %), and the current configuration (large deflection) adds 1-2 %; the margin
+        // to 0.77 %; it stops at 12 to 20 once the value has settled, LANCZOS_SETTLED), and the
+        // current configuration (large deflection) adds 1-2 %; the margin
         // covers both so that safety = 1 is stable. No eigenvector is kept: the first refresh
         // (a deforming body) measures from the deterministic start.
         let scratch = std::mem::take(&mut world.scratch);
-        let (omega, scratch) = world.lanczos_omega_max_in(LANCZOS_ITERATIONS, scratch);
+        let (omega, evaluations, scratch) = world.lanczos_omega_max_in(LANCZOS_ITERATIONS, scratch);
         world.scratch = scratch;
+        world.lanczos_evaluations = evaluations;
         world.omega_elastic = omega * (1.0 + OMEGA_MARGIN);
         world.omega_reference = world.omega_elastic;
         world.stable = StableStepState {
@@ -608,7 +611,10 @@ where
         world.omega_max = (world.omega_elastic.powi(2) + c2).sqrt();
         clock.done(
             SetupStage::StableStep,
-            &format!("omega_max {:.4e} rad/s", world.omega_max),
+            &format!(
+                "omega_max {:.4e} rad/s, {evaluations} force evaluations",
+                world.omega_max
+            ),
         )?;
         match world.update_forces() {
             Err(e @ SimError::Overlap { .. }) => {

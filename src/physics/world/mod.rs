@@ -18,8 +18,8 @@ pub use build::MIN_SPACING_BITS;
 pub use mirror::MirrorFace;
 pub use setup::{SetupInterrupt, SetupObserver, SetupStage, Unobserved};
 pub use stable_step::{
-    StableStepState, LANCZOS_ITERATIONS, OMEGA_MARGIN, REFRESH_CHECK_EVERY, REFRESH_DEFORMATION,
-    REFRESH_ITERATIONS, REFRESH_MIN_STEPS,
+    StableStepState, LANCZOS_ITERATIONS, LANCZOS_LEAST, LANCZOS_SETTLED, LANCZOS_SETTLE_WINDOW,
+    OMEGA_MARGIN, REFRESH_CHECK_EVERY, REFRESH_DEFORMATION, REFRESH_ITERATIONS, REFRESH_MIN_STEPS,
 };
 pub use state::WorldState;
 
@@ -303,6 +303,9 @@ where
     /// Contact bound of omega^2 (rad^2/s^2).
     omega2_contact: f64,
     stable: StableStepState<D>,
+    /// Force evaluations the set-up's Lanczos measurement of omega_max took (at most
+    /// LANCZOS_ITERATIONS, fewer once its value settled).
+    pub lanczos_evaluations: usize,
     /// Measurements of the stable step in the current configuration so far.
     pub step_refreshes: u64,
     /// Wall time spent checking and refreshing the stable step (s).

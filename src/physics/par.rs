@@ -292,6 +292,29 @@ mod tests {
     }
 
     #[test]
+    fn sums_have_the_same_bits_however_the_loop_runs() {
+        // Terms of mixed magnitude, so that the order of the additions shows in the bits.
+        let term = |i: usize| ((i * 7919) % 1000) as f64 * 10f64.powi((i % 17) as i32 - 8);
+        for n in [0, 1, 4095, 4096, 4097, 3 * 4096 + 5] {
+            // The definition: each chunk of SUM_CHUNK in order, then the chunks' sums in order.
+            let want: f64 = (0..n)
+                .step_by(SUM_CHUNK)
+                .map(|s| (s..(s + SUM_CHUNK).min(n)).map(term).sum::<f64>())
+                .sum();
+            assert_eq!(sum(n, term).to_bits(), want.to_bits(), "n {n}");
+            for threads in [1, 2, 3, 8] {
+                let e: BoxedExecutor = Box::new(Backwards(threads, AtomicUsize::new(0)));
+                let got = install(&e, || sum(n, term));
+                assert_eq!(got.to_bits(), want.to_bits(), "n {n}, {threads} threads");
+            }
+        }
+        // And the chunking matters: one sum in order over many terms has other bits.
+        let n = 3 * 4096 + 5;
+        let serial: f64 = (0..n).map(term).sum();
+        assert_ne!(serial.to_bits(), sum(n, term).to_bits());
+    }
+
+    #[test]
     fn every_element_once_with_its_index_however_the_loop_runs() {
         for n in [0, 1, 2, 7, 100, 1001] {
             let want: Vec<usize> = (0..n).map(|i| i * i).collect();

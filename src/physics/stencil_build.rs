@@ -1,7 +1,7 @@
 //! Set-up of the second-order operator's packed form (issue 25): the weights of each particle
 //! interned by set (module `stencils`), each distinct quantised neighbourhood fitted once; and
 //! the weights of a bond in either form.
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use super::bonds::Bonds;
 use super::dim::{Dim, Mat, Space, Vect};
@@ -11,7 +11,8 @@ use super::stencils::Stencils;
 
 /// Neighbourhood -> (set, geometry set, quadratic, full, span) of the quadratic fits seen so
 /// far.
-type Seen<const D: usize> = HashMap<Vec<u64>, (u32, u32, bool, bool, Mat<D>)>;
+/// (FxHash: std's SipHash over the keys' hundred words was 12 % of a 10^6-particle fits stage.)
+type Seen<const D: usize> = FxHashMap<Vec<u64>, (u32, u32, bool, bool, Mat<D>)>;
 
 impl<const D: usize> SecondOrder<D>
 where

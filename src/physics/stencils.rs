@@ -7,7 +7,7 @@
 //! few hundred sets instead of N, the force loop reads its weights from the cache instead of
 //! 96 bytes per bond from memory, and the memory per particle drops accordingly. Sets are
 //! compared bit for bit, so interning changes no result.
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use super::dim::{Dim, Mat, Space, Vect};
 
@@ -67,7 +67,7 @@ pub struct Stencils<const D: usize> {
     /// The sets' values, `stride(D)` per bond, by value (see [`stride`]).
     w: Vec<f64>,
     /// Hash of a set's bits -> the sets with that hash.
-    index: HashMap<u64, Vec<u32>>,
+    index: FxHashMap<u64, Vec<u32>>,
 }
 
 /// FNV-1a over the bits of the values (fast, and the sets are compared in full anyway).
@@ -91,7 +91,7 @@ where
             class: vec![u32::MAX; n],
             start: vec![0],
             w: Vec::new(),
-            index: HashMap::new(),
+            index: FxHashMap::default(),
         }
     }
 

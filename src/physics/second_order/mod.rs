@@ -576,19 +576,33 @@ fn quadratic_inverse(mom: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 /// For each directed bond i -> j the index of j -> i (bonds are stored in both directions with
 /// the neighbours of each particle sorted).
 pub fn mirror_index<const D: usize>(bonds: &Bonds<D>) -> Vec<u32> {
+    const CHUNK: usize = 4096;
     let n = bonds.start.len() - 1;
     let mut m = vec![u32::MAX; bonds.len()];
-    for i in 0..n {
-        for b in bonds.of(i) {
-            let j = bonds.nbr[b] as usize;
-            let r = bonds.of(j);
-            let slice = &bonds.nbr[r.clone()];
-            let k = slice
-                .binary_search(&(i as u32))
-                .expect("bonds are symmetric: j -> i exists for every i -> j");
-            m[b] = (r.start + k) as u32;
-        }
+    // In parallel, per chunk of particles, each writing its own bonds' entries.
+    let mut parts = Vec::with_capacity(n.div_ceil(CHUNK));
+    let mut rest = &mut m[..];
+    for first in (0..n).step_by(CHUNK) {
+        let last = (first + CHUNK).min(n);
+        let len = (bonds.start[last] - bonds.start[first]) as usize;
+        let (part, tail) = std::mem::take(&mut rest).split_at_mut(len);
+        rest = tail;
+        parts.push((first..last, part));
     }
+    crate::par_iter_mut!(parts).for_each(|(range, out)| {
+        let base = bonds.start[range.start] as usize;
+        for i in range.clone() {
+            for b in bonds.of(i) {
+                let j = bonds.nbr[b] as usize;
+                let r = bonds.of(j);
+                let slice = &bonds.nbr[r.clone()];
+                let k = slice
+                    .binary_search(&(i as u32))
+                    .expect("bonds are symmetric: j -> i exists for every i -> j");
+                out[b - base] = (r.start + k) as u32;
+            }
+        }
+    });
     m
 }
 

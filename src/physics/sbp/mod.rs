@@ -27,7 +27,9 @@
 //! long axis are alike, so the system is solved on a box of 2 REACH + 1 layers along such an
 //! axis with the rows beyond TIE layers from its ends tied to one correction (the translation
 //! invariant solution, which exists: the tied system is consistent to round-off), and copied
-//! back by layer. The reduced box needs some thousand conjugate-gradient iterations at most.
+//! back by layer. The corrections are the least-norm ones over the reduced box's rows (a tied
+//! class counts as its rows: (A P T (T^T T)^-1 T^T A^T) y = t, T the ties). The reduced box
+//! needs some thousand conjugate-gradient iterations at most.
 use std::collections::HashMap;
 
 use super::bonds::Bonds;

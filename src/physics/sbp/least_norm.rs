@@ -58,6 +58,8 @@ pub(super) struct NullSpaceConstraints<'a, const D: usize> {
     /// at `class_start[g]..class_start[g + 1]`, bond b's at `cpos[b]`.
     class_start: Vec<usize>,
     cpos: Vec<u32>,
+    /// Each row's class.
+    class: Vec<u32>,
     /// Where the incoming bond's correction is kept: `cpos[mirror[b]]`.
     cpos_in: Vec<u32>,
     /// Every stencil bond's r0 / l0 (D per bond), the monomials' linear part, for the loops
@@ -162,6 +164,7 @@ where
             },
             class_start: Vec::new(),
             cpos: Vec::new(),
+            class: tie.clone(),
             cpos_in: Vec::new(),
             lin,
             coarse_grid: Vec::new(),
@@ -587,14 +590,19 @@ where
         let nq = self.nq;
         let mut cols: Vec<&mut [f64]> = y.chunks_mut(nq).collect();
         par_iter_mut!(cols).enumerate().for_each(|(k, yk)| {
-            yk.iter_mut().for_each(|v| *v = 0.0);
+            // Row k's own corrections, contiguous in its class's block.
+            let g = self.class[k] as usize;
+            let own: f64 = c[self.class_start[g]..self.class_start[g + 1]].iter().sum();
+            let mut acc = [0.0; 4];
             for (b, r) in self.bonds.of(k).zip(self.row_lin(k).chunks_exact(D)) {
                 let cin = c[self.cpos_in[b] as usize];
-                yk[0] += cin - c[self.cpos[b] as usize];
+                acc[0] += cin;
                 for a in 0..D {
-                    yk[1 + a] += cin * r[a];
+                    acc[1 + a] += cin * r[a];
                 }
             }
+            acc[0] -= own;
+            yk.copy_from_slice(&acc[..nq]);
         });
     }
 

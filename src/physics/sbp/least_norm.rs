@@ -447,11 +447,14 @@ where
         out
     }
 
-    /// Coarse coefficients of a fine vector: its moments against the coarse fields.
+    /// Coarse coefficients of a fine vector: its moments against the coarse fields (the
+    /// components in parallel: on a reduced box's clamped axis, the last to finish, the coarse
+    /// correction was a third of an iteration on one thread).
     fn restrict(&self, r: &[f64], coef: &mut [f64]) {
         let nq = self.nq;
         let ne = self.coarse_ne;
-        for q in 0..nq {
+        let qs: Vec<usize> = (0..nq).collect();
+        let moments = crate::physics::par::map(&qs, |&q| {
             let mut t = vec![0.0; self.coarse_grid.len()];
             for (k, &g) in self.coarse_grid.iter().enumerate() {
                 t[g] = r[k * nq + q];
@@ -461,19 +464,19 @@ where
                 t = Self::contract(&t, &shape, a, &self.coarse_leg[a], ne);
                 shape[a] = ne;
             }
-            for (j, &(fq, f)) in self.coarse_fields.iter().enumerate() {
-                if fq == q {
-                    coef[j] = t[f];
-                }
-            }
+            t
+        });
+        for (j, &(q, f)) in self.coarse_fields.iter().enumerate() {
+            coef[j] = moments[q][f];
         }
     }
 
-    /// z += the coarse fields weighted by `coef`.
+    /// z += the coarse fields weighted by `coef` (the components in parallel).
     fn prolong(&self, coef: &[f64], z: &mut [f64]) {
         let nq = self.nq;
         let ne = self.coarse_ne;
-        for q in 0..nq {
+        let qs: Vec<usize> = (0..nq).collect();
+        let fields = crate::physics::par::map(&qs, |&q| {
             let mut t = vec![0.0; ne.pow(D as u32)];
             let mut any = false;
             for (j, &(fq, f)) in self.coarse_fields.iter().enumerate() {
@@ -483,7 +486,7 @@ where
                 }
             }
             if !any {
-                continue;
+                return None;
             }
             let mut shape = vec![ne; D];
             for a in 0..D {
@@ -491,6 +494,10 @@ where
                 t = Self::contract(&t, &shape, a, &self.coarse_leg_t[a], m);
                 shape[a] = m;
             }
+            Some(t)
+        });
+        for (q, t) in fields.iter().enumerate() {
+            let Some(t) = t else { continue };
             for (k, &g) in self.coarse_grid.iter().enumerate() {
                 z[k * nq + q] += t[g];
             }
@@ -604,6 +611,30 @@ where
             acc[0] -= own;
             yk.copy_from_slice(&acc[..nq]);
         });
+    }
+
+    /// |A c - t| for corrections c given per bond, or None when the rows of a class do not
+    /// hold the same corrections (c is then not of the tied form).
+    pub(super) fn residual(&self, c: &[f64], t: &[f64]) -> Option<f64> {
+        let mut cc = vec![0.0; self.class_len()];
+        for (b, &v) in c.iter().enumerate() {
+            cc[self.cpos[b] as usize] = v;
+        }
+        if c.iter()
+            .enumerate()
+            .any(|(b, &v)| cc[self.cpos[b] as usize] != v)
+        {
+            return None;
+        }
+        let mut ac = vec![0.0; t.len()];
+        self.apply(&cc, &mut ac);
+        Some(
+            ac.iter()
+                .zip(t)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt(),
+        )
     }
 
     /// Least-norm corrections for target t; returns (c, iterations, |A c - t|), or Err(how far

@@ -98,8 +98,11 @@ mod tests {
     use super::*;
     use crate::physics::dim::Vect;
 
+    /// The lattice indices, their inverse map and the positions.
+    type Lattice = (Vec<[usize; 2]>, HashMap<[usize; 2], usize>, Vec<Vect<2>>);
+
     /// A 4 x 4 lattice box (2D), its particles in row-major order.
-    fn lattice() -> (Vec<[usize; 2]>, HashMap<[usize; 2], usize>, Vec<Vect<2>>) {
+    fn lattice() -> Lattice {
         let sidx: Vec<[usize; 2]> = (0..16).map(|i| [i / 4, i % 4]).collect();
         let index = sidx.iter().enumerate().map(|(i, k)| (*k, i)).collect();
         let x = sidx

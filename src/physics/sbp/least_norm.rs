@@ -637,14 +637,16 @@ where
         )
     }
 
-    /// Least-norm corrections for target t; returns (c, iterations, |A c - t|), or Err(how far
-    /// it had come) when `stop` says so (polled every iteration).
+    /// Least-norm corrections for target t, from the multipliers y0 (or zero); returns (c, y,
+    /// iterations, |A c - t|) with y the multipliers (c = P A^T y), or Err(how far it had
+    /// come) when `stop` says so (polled every iteration).
     pub(super) fn solve(
         &self,
         t: &[f64],
         coarse: bool,
         stop: &(dyn Fn() -> bool + Sync),
-    ) -> Result<(Vec<f64>, usize, f64), Unfinished> {
+        y0: Option<&[f64]>,
+    ) -> Result<(Vec<f64>, Vec<f64>, usize, f64), Unfinished> {
         let started = std::time::Instant::now();
         let n = t.len();
         let nb = self.bonds.len();
@@ -675,7 +677,7 @@ where
                 };
             }
         };
-        let mut yv = vec![0.0; n];
+        let mut yv = y0.map_or_else(|| vec![0.0; n], <[f64]>::to_vec);
         let mut c = vec![0.0; self.class_len()];
         let mut ap = vec![0.0; n];
         let mut z = vec![0.0; n];
@@ -684,6 +686,11 @@ where
         // a floor (1e-8 to 1e-4 of the target on some axes), below which the iterates drift
         // and, in long runs, diverge; the run stops there or at the tolerance.
         let mut r = t.to_vec();
+        if y0.is_some() {
+            self.at_project(&yv, &mut c);
+            self.apply(&c, &mut ap);
+            r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= a);
+        }
         precond(&r, &mut z);
         let mut p = z.clone();
         let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
@@ -738,7 +745,7 @@ where
             .sqrt();
         // Per bond.
         let c = (0..nb).map(|b| c[self.cpos[b] as usize]).collect();
-        Ok((c, iters, res))
+        Ok((c, yv, iters, res))
     }
 }
 

@@ -658,47 +658,16 @@ where
     vso.h = Vec::new();
     // An axis whose target is another's under the swap of the two axes takes that axis's
     // corrections swapped (module `symmetry`), checked against its own constraints.
-    let mut mapped = symmetry::BoxAxes {
+    // On a box solved whole every axis takes the coarse correction; on a reduced one the
+    // clamped axes only. Axes alike under a swap share their work (module `symmetry`).
+    let (solved, mapped) = symmetry::BoxAxes {
         small: &small,
         ext: &ext,
         sidx: &sidx,
         small_index: &small_index,
         nq,
     }
-    .alike_axes(&targets);
-    let axes: Vec<(usize, &Vec<f64>)> = targets
-        .iter()
-        .enumerate()
-        .filter(|(d, _)| mapped[*d].is_none())
-        .collect();
-    // On a box solved whole every axis takes the coarse correction; on a reduced one the
-    // clamped axes only.
-    let solve = |&(d, t): &(usize, &Vec<f64>)| sys.solve(t, !tied || clamped_axes[d], stop);
-    let mut by_axis: Vec<Option<_>> = (0..D).map(|_| None).collect();
-    for ((d, _), r) in axes.iter().zip(crate::physics::par::map(&axes, solve)) {
-        by_axis[*d] = Some(r);
-    }
-    for d in 0..D {
-        let Some((d1, perm)) = &mapped[d] else {
-            continue;
-        };
-        let Some(Ok((c1, _, res1))) = by_axis[*d1].as_ref() else {
-            by_axis[d] = Some(sys.solve(&targets[d], !tied || clamped_axes[d], stop));
-            mapped[d] = None;
-            continue;
-        };
-        let c2 = symmetry::swapped_corrections(&vb, perm, c1);
-        let t = &targets[d];
-        let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
-        by_axis[d] = match c2.and_then(|c2| Some((sys.residual(&c2, t)?, c2))) {
-            Some((res, c2)) if res <= (2.0 * res1).max(1e-9 * tnorm) => Some(Ok((c2, 0, res))),
-            _ => {
-                mapped[d] = None;
-                Some(sys.solve(t, !tied || clamped_axes[d], stop))
-            }
-        };
-    }
-    let solved: Vec<_> = by_axis.into_iter().flatten().collect();
+    .solve_axes(&sys, &vb, &targets, &|d| !tied || clamped_axes[d], stop);
     if solved.iter().any(|s| s.is_err()) {
         // The slowest axis says how long the closure still needs (they run side by side).
         let (d, u) = solved
@@ -719,7 +688,7 @@ where
     }
     let solved: Vec<_> = solved.into_iter().flatten().collect();
     let mut corr: Vec<Vect<D>> = vec![Vect::<D>::zeros(); nb];
-    for (d, (t, (c, iters, res))) in targets.iter().zip(solved).enumerate() {
+    for (d, (t, (c, _, iters, res))) in targets.iter().zip(solved).enumerate() {
         let tnorm = t.iter().map(|v| v * v).sum::<f64>().sqrt();
         // (NaN fails it too.)
         if res.partial_cmp(&(ACCEPT * tnorm)) != Some(std::cmp::Ordering::Less) {
@@ -735,8 +704,8 @@ where
                 cmax = cmax.max((c[bnd] / h).abs());
             }
         }
-        let how = match &mapped[d] {
-            Some((d1, _)) => format!("axis {d1}'s corrections, its axes swapped"),
+        let how = match mapped[d] {
+            Some(d1) => format!("axis {d1}'s corrections, its axes swapped"),
             None => format!("{iters} CG iterations"),
         };
         figures.push(format!(

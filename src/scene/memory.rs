@@ -36,10 +36,14 @@ const SECOND_ORDER_BOND_BYTES: [u64; 2] = [49, 66];
 /// body's particles and 15^D), on top of `CLOSURE_SHARE` of the per-particle cost of the whole
 /// world for what the body holds by then (bonds, fits). Measured in 3D at re = 2.1 dp: 1,700 B
 /// per particle plus 39.6 MB (8.06 kB per box particle) from the 25^3 and 30^3 cubes, whose
-/// peak is the closure. 2D: the figure measured before issue 25 (31 kB per box particle),
-/// an upper bound not measured again (the 2D box has at most 289 particles).
+/// peak was the closure; since its solve keeps its monomials per lattice stencil and its tied
+/// corrections per class (2026-12-07, fifteenth session) the peaks of the 15^3, 20^3 and 25^3
+/// cubes are 26.65, 31.65 and 50.45 MB (66.2 MB at 25^3 before), bounded with 7.0 kB per box
+/// particle (30.8, 39.1 and 52.9 MB); at 30^3 the stable step's is the peak. 2D: the figure
+/// measured before issue 25 (31 kB per box particle), an upper bound not measured again (the
+/// 2D box has at most 289 particles).
 const CLOSURE_LAYERS: f64 = 15.0;
-const CLOSURE_BOX_BYTES: [f64; 2] = [31_000.0, 8_500.0];
+const CLOSURE_BOX_BYTES: [f64; 2] = [31_000.0, 7_000.0];
 const CLOSURE_SHARE: f64 = 0.62;
 /// Fixed cost of a world whatever its size (bytes).
 const FIXED_BYTES: u64 = 1 << 20;

@@ -7,6 +7,7 @@ use super::dim::{Dim, Space, Vect};
 #[allow(unused_imports)]
 use super::par::*;
 use super::params::BondStrain;
+pub use super::strain_screen::StrainScreen;
 use crate::par_iter_mut;
 
 /// Whether the bond from particle `i` to `j` (reference vector `r0`) is strained beyond eps_max
@@ -15,7 +16,7 @@ use crate::par_iter_mut;
 /// count, and both break in the same step. `limit2` is (1 + eps_max)^2 for the stretch and
 /// eps_max^2 otherwise.
 #[allow(clippy::too_many_arguments)]
-fn strained<const D: usize>(
+pub(super) fn strained<const D: usize>(
     m: BondStrain,
     limit2: f64,
     i: usize,
@@ -60,7 +61,7 @@ where
 }
 
 /// `limit2` of [`strained`] for eps_max and the measure.
-fn strain_limit2(eps_max: f64, measure: BondStrain) -> f64 {
+pub(super) fn strain_limit2(eps_max: f64, measure: BondStrain) -> f64 {
     match measure {
         BondStrain::Stretch => (1.0 + eps_max) * (1.0 + eps_max),
         _ => eps_max * eps_max,
@@ -91,204 +92,6 @@ where
         *f = u8::from(hit);
     });
     (0..u.len()).filter(|&i| flag[i] != 0).collect()
-}
-
-/// Fraction of a particle's slack that its bonds' ends may move before its bonds are tested
-/// again (-), and the motion taken as round-off, as a fraction of the shortest bond (-): the
-/// slack is a lower bound already (by a factor up to 2: the bound's sqrt(L2) + sqrt(x2) <=
-/// 2 sqrt(L2), and the shortest bond's length for each bond's); these keep the round-off of
-/// the squared lengths and of the displacement changes (1e-16 of them) from deciding a break.
-const SCREEN_USE: f64 = 0.999;
-const SCREEN_ROUND_OFF: f64 = 1e-9;
-
-/// Share of the particles above which a check tests every bond and takes a new record (-):
-/// the record has grown stale (the bodies have moved too far since).
-const SCREEN_RECORD_SHARE: f64 = 0.125;
-
-/// A screen in front of the bond-strain test (issue 25). At a full test it records the
-/// displacements and, per particle, a lower bound of how far the two ends of any of its intact
-/// bonds must move relative to each other before the bond can reach eps_max (its slack). At
-/// the next checks a pass over the particles (not the bonds) takes each particle's
-/// displacement change since the record, less its body's translation (d_i), and the largest
-/// of its body (d_max): a bond i-j has moved by at most d_i + d_j <= d_i + d_max, so only the particles
-/// whose slack is below that are tested, with the same test; a bond that breaks is found from
-/// both its ends (the slack and the bound are symmetric). When more than an eighth of the
-/// particles would be tested, all are, and the record is taken again. So the screen only
-/// skips tests that would find nothing: the bonds break at the same steps as without it, bit
-/// for bit. The stretch and the relative-displacement measures are screened; the
-/// rotation-corrected one (which also reads the orientations) tests every bond at every check.
-#[derive(Clone, Debug, Default)]
-pub struct StrainScreen<const D: usize> {
-    /// Displacements at the last full test (empty: no valid record).
-    u_ref: Vec<Vect<D>>,
-    /// Per body, the particle whose displacement change is taken as the body's translation
-    /// (its lowest index).
-    anchor: Vec<u32>,
-    /// Per particle, the lower bound of the relative motion of the ends of any of its intact
-    /// bonds that could break it, at the last full test (m).
-    slack: Vec<f64>,
-    /// Per particle scratch: its displacement change since the record (m).
-    moved: Vec<f64>,
-    /// Per body scratch: the largest of its particles' `moved` (m).
-    moved_max: Vec<f64>,
-    /// Shortest reference bond length of the set-up (m): bonds only break, so it bounds every
-    /// intact bond's from below for good.
-    l0_min: f64,
-    /// Checks that tested every bond, and the particles tested by the others.
-    pub full_tests: u64,
-    pub particles_tested: u64,
-}
-
-impl<const D: usize> StrainScreen<D> {
-    /// Forgets the record (the state was restored: its bonds may differ).
-    pub fn invalidate(&mut self) {
-        self.u_ref.clear();
-    }
-
-    /// The particles (ascending) with a bond strained beyond eps_max, as
-    /// [`strained_particles`] finds them, testing only the bonds that may have reached the
-    /// limit since the record. `flag` is scratch (one byte per particle).
-    #[allow(clippy::too_many_arguments)]
-    pub fn strained(
-        &mut self,
-        u: &[Vect<D>],
-        q: &[<Space as Dim<D>>::Rotation],
-        body: &[u32],
-        bonds: &Bonds<D>,
-        eps_max: f64,
-        measure: BondStrain,
-        flag: &mut Vec<u8>,
-    ) -> Vec<usize>
-    where
-        Space: Dim<D>,
-    {
-        let n = u.len();
-        if measure == BondStrain::RotationCorrected {
-            self.full_tests += 1;
-            return strained_particles(u, q, bonds, eps_max, measure, flag);
-        }
-        if self.u_ref.len() != n {
-            return self.record(u, body, bonds, eps_max, measure, flag);
-        }
-        let (u_ref, anchor) = (&self.u_ref, &self.anchor);
-        self.moved.resize(n, 0.0);
-        par_iter_mut!(self.moved[..])
-            .enumerate()
-            .for_each(|(i, d)| {
-                let a = anchor[body[i] as usize] as usize;
-                *d = ((u[i] - u_ref[i]) - (u[a] - u_ref[a])).norm();
-            });
-        // Per body the largest change (bonds join particles of one body). NaN (a blown-up
-        // state) makes its max NaN and every comparison false below: then all its particles
-        // are candidates and the full test runs.
-        self.moved_max.clear();
-        self.moved_max.resize(self.anchor.len(), 0.0);
-        for (&d, &b) in self.moved.iter().zip(body) {
-            let m = &mut self.moved_max[b as usize];
-            if d > *m || d.is_nan() {
-                *m = d;
-            }
-        }
-        flag.resize(n, 0);
-        let (slack, moved, moved_max) = (&self.slack, &self.moved, &self.moved_max);
-        let tol = SCREEN_ROUND_OFF * self.l0_min;
-        par_iter_mut!(flag[..]).enumerate().for_each(|(i, f)| {
-            let reach = moved[i] + moved_max[body[i] as usize] + tol;
-            // Skipped only when the reach is surely within the slack (NaN: tested).
-            let clear = reach < SCREEN_USE * slack[i];
-            *f = u8::from(!clear);
-        });
-        let candidates = flag.iter().filter(|&&f| f != 0).count();
-        if candidates as f64 > SCREEN_RECORD_SHARE * n as f64 {
-            return self.record(u, body, bonds, eps_max, measure, flag);
-        }
-        self.particles_tested += candidates as u64;
-        if candidates == 0 {
-            return Vec::new();
-        }
-        let limit2 = strain_limit2(eps_max, measure);
-        par_iter_mut!(flag[..]).enumerate().for_each(|(i, f)| {
-            if *f != 0 {
-                let hit = bonds.of(i).any(|k| {
-                    bonds.w0[k] != 0.0
-                        && strained(measure, limit2, i, bonds.nbr[k] as usize, bonds.r0[k], u, q)
-                });
-                *f = u8::from(hit);
-            }
-        });
-        (0..n).filter(|&i| flag[i] != 0).collect()
-    }
-
-    /// Full test, recording the displacements and each particle's slack over the bonds that
-    /// stay intact.
-    fn record(
-        &mut self,
-        u: &[Vect<D>],
-        body: &[u32],
-        bonds: &Bonds<D>,
-        eps_max: f64,
-        measure: BondStrain,
-        flag: &mut Vec<u8>,
-    ) -> Vec<usize> {
-        let n = u.len();
-        self.full_tests += 1;
-        if self.anchor.is_empty() {
-            let bodies = body.iter().map(|&b| b as usize + 1).max().unwrap_or(0);
-            self.anchor = vec![0; bodies];
-            for (i, &b) in body.iter().enumerate().rev() {
-                self.anchor[b as usize] = i as u32;
-            }
-            self.l0_min = bonds
-                .r0
-                .iter()
-                .map(|r| r.norm())
-                .fold(f64::INFINITY, f64::min);
-        }
-        flag.resize(n, 0);
-        self.slack.resize(n, 0.0);
-        let limit2 = strain_limit2(eps_max, measure);
-        // Per bond, with x2 its measured squared length (the stretched bond's, or its relative
-        // displacement's) and L2 = limit2 |r0|^2: strained when x2 > L2 (the test of
-        // `strained`, in the same canonical direction), else its ends must move by at least
-        // sqrt(L2) - sqrt(x2) = (L2 - x2) / (sqrt(L2) + sqrt(x2)) >= m l0 / (2 sqrt(limit2))
-        // relative to each other, with m = (L2 - x2) / |r0|^2.
-        let scale = self.l0_min / (2.0 * limit2.sqrt());
-        par_iter_mut!(flag[..])
-            .zip(par_iter_mut!(self.slack[..]))
-            .enumerate()
-            .for_each(|(i, (f, slack))| {
-                let mut hit = false;
-                let mut m = f64::INFINITY;
-                let ui = u[i];
-                for k in bonds.of(i) {
-                    if bonds.w0[k] == 0.0 {
-                        continue;
-                    }
-                    // From i to j, not in `strained`'s canonical direction: the two differ by
-                    // the sign of r0 and of du (exactly, as r0_ji = -r0_ij and u_i - u_j =
-                    // -(u_j - u_i) in floating point), which the squared lengths do not see.
-                    let r0 = bonds.r0[k];
-                    let du = u[bonds.nbr[k] as usize] - ui;
-                    let l02 = r0.norm_squared();
-                    let x2 = match measure {
-                        BondStrain::Stretch => (r0 + du).norm_squared(),
-                        _ => du.norm_squared(),
-                    };
-                    let room = limit2 * l02 - x2;
-                    if room < 0.0 {
-                        hit = true;
-                    } else if room < m * l02 {
-                        m = room / l02;
-                    }
-                }
-                *f = u8::from(hit);
-                // A NaN room leaves m as it was: a non-finite state is caught by the step.
-                *slack = m * scale;
-            });
-        self.u_ref.clear();
-        self.u_ref.extend_from_slice(u);
-        (0..n).filter(|&i| flag[i] != 0).collect()
-    }
 }
 
 /// Breaks the bonds of the `touched` particles (from [`strained_particles`] at the same state)

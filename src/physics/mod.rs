@@ -18,6 +18,7 @@ pub mod second_order;
 pub mod shape;
 pub mod stencil_build;
 pub mod stencils;
+pub mod strain_screen;
 pub mod world;
 
 pub mod par;

@@ -174,6 +174,7 @@ where
         // Only the bonds whose ends have moved far enough since the last full test to reach
         // eps_max are tested (issue 25: the test of every bond each step was 12 % of case 3).
         let touched = self.strain_screen.strained(
+            &self.p.x0,
             &self.p.u,
             &self.p.q,
             &self.p.body,

@@ -7,7 +7,6 @@ use super::dim::{Dim, Space, Vect};
 #[allow(unused_imports)]
 use super::par::*;
 use super::params::BondStrain;
-pub use super::strain_screen::StrainScreen;
 use crate::par_iter_mut;
 
 /// Whether the bond from particle `i` to `j` (reference vector `r0`) is strained beyond eps_max

@@ -1,10 +1,11 @@
-//! The screen in front of the bond-strain test (`fracture::StrainScreen`, issue 25) skips only
+//! The screen in front of the bond-strain test (`strain_screen::StrainScreen`, issue 25) skips only
 //! tests that would find nothing: driven through a sequence of displacement fields (a growing
 //! strain with a hot spot, a rigid translation and rotation of the whole body, vibration), it
 //! reports at every check exactly the particles the full test reports, so the same bonds break
 //! at the same checks, and it tests far fewer bonds.
 use mps_solid::physics::bonds::Bonds;
-use mps_solid::physics::fracture::{break_strained, strained_particles, StrainScreen};
+use mps_solid::physics::fracture::{break_strained, strained_particles};
+use mps_solid::physics::strain_screen::StrainScreen;
 use mps_solid::physics::{BondStrain, Vect};
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 

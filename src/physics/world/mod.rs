@@ -288,7 +288,7 @@ where
     /// Fracture checks so far, one per step (0 when eps_max is infinite).
     pub fracture_checks: u64,
     /// Checks that tested every bond (the others were screened out: no bond could have
-    /// reached eps_max since the last test, `fracture::StrainScreen`).
+    /// reached eps_max since the last test, `strain_screen::StrainScreen`).
     pub strain_tests: u64,
     /// Bond pairs broken so far, Eq. (42).
     pub broken_pairs: u64,
@@ -311,7 +311,7 @@ where
     /// Wall time spent checking and refreshing the stable step (s).
     pub step_refresh_seconds: f64,
     frac_flag: Vec<u8>,
-    strain_screen: crate::physics::fracture::StrainScreen<D>,
+    strain_screen: crate::physics::strain_screen::StrainScreen<D>,
     scratch: ElasticScratch<D>,
     force: Vec<Vect<D>>,
     /// The gravity (m/s^2) and the followers' load shares (N, per follower) with which the

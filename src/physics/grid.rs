@@ -111,20 +111,7 @@ impl<const D: usize> CellGrid<D> {
             CellIndex::Dense { .. } => total.unwrap_or(0) as usize,
             CellIndex::Hashed(map) => map.len(),
         };
-        // Counting sort, stable: each cell keeps its points in the order given.
-        let mut start = vec![0u32; cells + 1];
-        for &c in &cell_of {
-            start[c as usize + 1] += 1;
-        }
-        for c in 0..cells {
-            start[c + 1] += start[c];
-        }
-        let mut fill = start.clone();
-        let mut items = vec![0u32; order.len()];
-        for (&i, &c) in order.iter().zip(&cell_of) {
-            items[fill[c as usize] as usize] = i;
-            fill[c as usize] += 1;
-        }
+        let (start, items) = rows_by_cell(&cell_of, cells, &order);
         CellGrid {
             cell,
             start,
@@ -170,6 +157,26 @@ impl<const D: usize> CellGrid<D> {
             }
         }
     }
+}
+
+/// Compressed rows of `items` by their cells (`cell_of[k]` is the cell of `items[k]`, below
+/// `cells`): cell c's at `rows[start[c]..start[c + 1]]`, in the order given (a stable counting
+/// sort). Returns (start, rows).
+pub(crate) fn rows_by_cell(cell_of: &[u32], cells: usize, items: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; cells + 1];
+    for &c in cell_of {
+        start[c as usize + 1] += 1;
+    }
+    for c in 0..cells {
+        start[c + 1] += start[c];
+    }
+    let mut fill = start.clone();
+    let mut rows = vec![0u32; items.len()];
+    for (&i, &c) in items.iter().zip(cell_of) {
+        rows[fill[c as usize] as usize] = i;
+        fill[c as usize] += 1;
+    }
+    (start, rows)
 }
 
 impl<const D: usize> CellIndex<D> {

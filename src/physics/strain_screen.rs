@@ -135,19 +135,8 @@ impl RestCells {
             cell_of.push(*index.entry(key(i)).or_insert(next));
         }
         let m = index.len();
-        let mut member_start = vec![0u32; m + 1];
-        for &c in &cell_of {
-            member_start[c as usize + 1] += 1;
-        }
-        for c in 0..m {
-            member_start[c + 1] += member_start[c];
-        }
-        let mut fill = member_start.clone();
-        let mut members = vec![0u32; n];
-        for (i, &c) in cell_of.iter().enumerate() {
-            members[fill[c as usize] as usize] = i as u32;
-            fill[c as usize] += 1;
-        }
+        let all: Vec<u32> = (0..n as u32).collect();
+        let (member_start, members) = super::grid::rows_by_cell(&cell_of, m, &all);
         let mut keys = vec![(0u32, [0i64; D]); m];
         for (k, &c) in &index {
             keys[c as usize] = *k;

@@ -110,6 +110,10 @@ pub struct Overlap {
     pub limit: f64,
 }
 
+/// Bits of a surface particle's touch flags in a force evaluation (`Contact::touch`).
+const TOUCH_SAME_BODY: u8 = 1;
+const TOUCH_REPELLING: u8 = 2;
+
 /// Contact state: surface flags, number densities and the Verlet pair list.
 #[derive(Clone, Debug)]
 pub struct Contact<const D: usize> {
@@ -152,9 +156,14 @@ pub struct Contact<const D: usize> {
     f_s: Vec<Vect<D>>,
     /// First overlap found per surface particle (scratch).
     hit: Vec<Option<(u32, f64, f64)>>,
-    /// Whether a pair of one body came within its contact distance, per surface particle
-    /// (scratch).
-    touch: Vec<bool>,
+    /// Per surface particle (scratch): bit `TOUCH_SAME_BODY`, a pair of one body came within
+    /// its contact distance; bit `TOUCH_REPELLING`, a repelling pair did.
+    touch: Vec<u8>,
+    /// Whether some repelling pair was within its contact distance at the last force
+    /// evaluation: only then does contact add stiffness, and the stable step its bound
+    /// ([`Contact::omega2_bound`]). It depends on the positions only (every pair within its
+    /// contact distance is in any valid pair list), so a restored state gives the same value.
+    pub pressed: bool,
     pub needs_rebuild: bool,
     /// Pair-list builds so far.
     pub searches: u64,
@@ -222,6 +231,7 @@ impl<const D: usize> Contact<D> {
             f_s: Vec::new(),
             hit: Vec::new(),
             touch: Vec::new(),
+            pressed: false,
             same_body_touches: 0,
             needs_rebuild: true,
             searches: 0,
@@ -364,7 +374,7 @@ impl<const D: usize> Contact<D> {
         let ns = self.surface_ids.len();
         self.f_s.resize(ns, Vect::<D>::zeros());
         self.hit.resize(ns, None);
-        self.touch.resize(ns, false);
+        self.touch.resize(ns, 0);
         let frac = self.opts.overlap_fraction;
         let nb = self.n_bodies;
         let (ids, start, nbr, repel, reach, k0) = (
@@ -384,7 +394,7 @@ impl<const D: usize> Contact<D> {
                 let bi = body[i] as usize;
                 let mut acc = Vect::<D>::zeros();
                 let mut hit = None;
-                let mut touch = false;
+                let mut touch = 0u8;
                 for e in start[s] as usize..start[s + 1] as usize {
                     let j = nbr[e] as usize;
                     let r = rel(x0, u, i, j);
@@ -393,7 +403,9 @@ impl<const D: usize> Contact<D> {
                     if r2 >= c * c {
                         continue;
                     }
-                    touch |= body[j] as usize == bi;
+                    if body[j] as usize == bi {
+                        touch |= TOUCH_SAME_BODY;
+                    }
                     let d = r2.sqrt();
                     // Overlap: closer than the fraction of the pair's contact distance.
                     if d < frac * c {
@@ -403,6 +415,7 @@ impl<const D: usize> Contact<D> {
                         continue;
                     }
                     if repel[e] {
+                        touch |= TOUCH_REPELLING;
                         let k = k0[bi * nb + body[j] as usize];
                         // f_i = -f(r) r_ij / r
                         acc -= r * (force_magnitude(k, c, d) / d);
@@ -412,9 +425,11 @@ impl<const D: usize> Contact<D> {
                 *h_out = hit;
                 *t_out = touch;
             });
-        if self.touch.iter().any(|&t| t) {
+        let touched = self.touch.iter().fold(0u8, |a, &t| a | t);
+        if touched & TOUCH_SAME_BODY != 0 {
             self.same_body_touches += 1;
         }
+        self.pressed = touched & TOUCH_REPELLING != 0;
         for (s, &i) in self.surface_ids.iter().enumerate() {
             force[i as usize] += self.f_s[s];
         }

@@ -598,8 +598,9 @@ where
             eig_t: Vec::new(),
             eig_r: Vec::new(),
         };
-        // Contact adds stiffness that the reference state does not show: its bound is added to
-        // the measured omega^2 (Weyl: lambda_max(A + B) <= lambda_max(A) + lambda_max(B)).
+        // Contact adds stiffness that the reference state does not show: while a repelling pair
+        // is in contact its bound is added to the measured omega^2 (Weyl: lambda_max(A + B) <=
+        // lambda_max(A) + lambda_max(B); `set_omega_max`, after each force evaluation).
         let c2 = if world.contact.active
             && (world.body_names.len() >= 2 || world.options.contact.fractured_surfaces)
         {
@@ -608,11 +609,19 @@ where
             0.0
         };
         world.omega2_contact = c2;
-        world.omega_max = (world.omega_elastic.powi(2) + c2).sqrt();
+        world.omega_max = world.omega_elastic;
+        let in_contact = if c2 > 0.0 {
+            format!(
+                " ({:.4e} while bodies are in contact)",
+                (world.omega_elastic.powi(2) + c2).sqrt()
+            )
+        } else {
+            String::new()
+        };
         clock.done(
             SetupStage::StableStep,
             &format!(
-                "omega_max {:.4e} rad/s, {evaluations} force evaluations",
+                "omega_max {:.4e} rad/s{in_contact}, {evaluations} force evaluations",
                 world.omega_max
             ),
         )?;

@@ -75,9 +75,26 @@ impl<const D: usize> World<D>
 where
     Space: Dim<D>,
 {
-    /// Largest angular frequency of the linearised particle model (rad/s), contact included.
+    /// Largest angular frequency of the linearised particle model (rad/s), contact included
+    /// while some repelling pair is in contact.
     pub fn omega_max(&self) -> f64 {
         self.omega_max
+    }
+
+    /// Sets omega_max from the elastic model's and, while some repelling pair is within its
+    /// contact distance (`Contact::pressed`, the last force evaluation), contact's bound:
+    /// contact adds stiffness only to pairs in contact, so with none the elastic model alone
+    /// sets the step. The step that follows a force evaluation is then stable for the
+    /// stiffness at the state it starts from: a pair that comes into contact during a step
+    /// shortens the next one (an advance re-divides its remaining time, `advance_to_with`),
+    /// and the force law's onset (`contact::ONSET`) makes a pair's first touch soft.
+    pub(super) fn set_omega_max(&mut self) {
+        let c2 = if self.contact.pressed {
+            self.omega2_contact
+        } else {
+            0.0
+        };
+        self.omega_max = (self.omega_elastic.powi(2) + c2).sqrt();
     }
 
     /// Largest angular frequency of the elastic model alone, measured on its own forces (rad/s).
@@ -405,7 +422,7 @@ where
                 eig_r,
             };
             self.omega_elastic = self.stable.omega_elastic;
-            self.omega_max = (self.omega_elastic.powi(2) + self.omega2_contact).sqrt();
+            self.set_omega_max();
             self.step_refreshes += 1;
         }
         self.step_refresh_seconds += clock.elapsed().as_secs_f64();

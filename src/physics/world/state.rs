@@ -147,7 +147,7 @@ where
         // The stable step as it was measured for this state; never below the reference one.
         self.stable = s.stable_step.clone();
         self.omega_elastic = self.stable.omega_elastic.max(self.omega_reference);
-        self.omega_max = (self.omega_elastic.powi(2) + self.omega2_contact).sqrt();
+        // omega_max follows from the forces' contact state (`set_omega_max`).
         self.update_forces()
     }
 }

@@ -57,6 +57,7 @@ where
                 .contact
                 .add_forces(&self.p.x0, &self.p.u, &self.p.body, &mut self.force);
         }
+        self.set_omega_max();
         // The followers of clamped faces carry no inertia of their own; their weight, loads
         // and contact forces act through the constraint (on the layers they follow and the
         // clamp). Their elastic forces took that path in the operator.

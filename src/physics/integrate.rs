@@ -8,7 +8,13 @@ use crate::par_iter_mut;
 
 /// Per-step inputs of the integrator that are the same for all particles.
 pub struct StepInputs<'a, const D: usize> {
+    /// Length of this step (s): the drift, Eqs. (38) and (40).
     pub dt: f64,
+    /// Time over which this step's forces change the velocities (s), Eqs. (37) and (39): the
+    /// velocities are those of the step that led here, so with steps of unequal length the
+    /// forces at t_n act over half of each, (dt_previous + dt) / 2 (Stormer-Verlet with
+    /// variable steps); with equal steps it is dt. See `World::previous_step`.
+    pub kick_dt: f64,
     pub gravity: Vect<D>,
     /// Mass-proportional damping (1/s).
     pub damping: f64,
@@ -39,7 +45,7 @@ pub fn symplectic_euler<const D: usize>(
 where
     Space: Dim<D>,
 {
-    let dt = inp.dt;
+    let (dt, kick) = (inp.dt, inp.kick_dt);
     let Particles {
         x0,
         u,
@@ -68,7 +74,7 @@ where
             }
             // Eq. (37) and (38), on the displacement u = x - X (full precision far from the
             // origin; x is derived).
-            let mut vn = *vi + f * (dt / m);
+            let mut vn = *vi + f * (kick / m);
             let mut un = *ui + vn * dt;
             let flags = fix[i];
             if flags != 0 {
@@ -89,7 +95,7 @@ where
             if flags & FIX_ROT == 0 {
                 *wi = <Space as Dim<D>>::ang_add(
                     *wi,
-                    <Space as Dim<D>>::ang_scale(torque[i], dt / inertia[i]),
+                    <Space as Dim<D>>::ang_scale(torque[i], kick / inertia[i]),
                 );
                 // Without an angular velocity the orientation stays as it is (the energy
                 // operators have no moments: their particles never turn), and the quaternion

@@ -33,9 +33,10 @@ pub struct FmuState {
 /// absent) in the state's scene. Version 5: the world's state carries the retained energy
 /// shares of particles whose re-fit at a break was limited and the energy released by breaks.
 /// Version 6: the state's scene carries `solver.max_setup_seconds`, a body its shapes and cuts,
-/// a boundary group and a load region their selecting shape (issue 26).
+/// a boundary group and a load region their selecting shape (issue 26). Version 7: the world's
+/// state carries the length of the step that led to it (`WorldState::previous_step`).
 const STATE_MAGIC: &[u8; 8] = b"MPSFMUST";
-const STATE_VERSION: u32 = 6;
+const STATE_VERSION: u32 = 7;
 /// Largest serialised state accepted (bytes): bounds the allocations of a decoded state.
 const MAX_STATE_BYTES: u64 = 1 << 34;
 

@@ -550,6 +550,7 @@ where
             broken_pairs: 0,
             fracture_release: 0.0,
             omega_max: 0.0,
+            previous_step: 0.0,
             omega_elastic: 0.0,
             omega_reference: 0.0,
             omega2_contact: 0.0,

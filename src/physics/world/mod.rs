@@ -297,6 +297,9 @@ where
     /// negative, `ElasticOperator::limit_at_break`). 0 for the paper's operators.
     pub fracture_release: f64,
     omega_max: f64,
+    /// Length of the step that led to the current state (s); 0 before the first step. The
+    /// velocities are this step's (`StepInputs::kick_dt`).
+    previous_step: f64,
     omega_elastic: f64,
     /// omega_max of the elastic model in the reference configuration (with the margin).
     omega_reference: f64,

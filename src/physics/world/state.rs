@@ -34,6 +34,11 @@ where
     /// Strain energy released by the breaks so far (J).
     #[serde(default)]
     pub fracture_release: f64,
+    /// Length of the step that led to this state (s; 0: none yet): the velocities are this
+    /// step's, and the next step's forces act over half of it and half of the next
+    /// (`StepInputs::kick_dt`).
+    #[serde(default)]
+    pub previous_step: f64,
 }
 
 impl<const D: usize> World<D>
@@ -60,6 +65,7 @@ where
                 self.op.retained.clone()
             },
             fracture_release: self.fracture_release,
+            previous_step: self.previous_step,
         }
     }
 
@@ -100,10 +106,12 @@ where
                 .iter()
                 .all(<Space as Dim<D>>::ang_finite)
             && s.retained.iter().all(|r| (0.0..=1.0).contains(r))
-            && s.fracture_release.is_finite())
+            && s.fracture_release.is_finite()
+            && s.previous_step.is_finite()
+            && s.previous_step >= 0.0)
         {
             return Err(SimError::Invalid(
-                "state holds non-finite positions, velocities or bond weights, or retained energy shares outside [0, 1]".into(),
+                "state holds non-finite positions, velocities or bond weights, retained energy shares outside [0, 1] or a negative previous step".into(),
             ));
         }
         self.time = s.time;
@@ -135,6 +143,7 @@ where
             self.op.retained.clone_from(&s.retained);
         }
         self.fracture_release = s.fracture_release;
+        self.previous_step = s.previous_step;
         self.contact.refresh_all(&self.bonds, &self.p.body);
         for (g, m) in self.groups.iter_mut().zip(&s.motions) {
             g.motion = *m;

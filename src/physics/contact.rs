@@ -159,11 +159,19 @@ pub struct Contact<const D: usize> {
     /// Per surface particle (scratch): bit `TOUCH_SAME_BODY`, a pair of one body came within
     /// its contact distance; bit `TOUCH_REPELLING`, a repelling pair did.
     touch: Vec<u8>,
-    /// Whether some repelling pair was within its contact distance at the last force
-    /// evaluation: only then does contact add stiffness, and the stable step its bound
-    /// ([`Contact::omega2_bound`]). It depends on the positions only (every pair within its
-    /// contact distance is in any valid pair list), so a restored state gives the same value.
-    pub pressed: bool,
+    /// Per surface particle (scratch): its row of Gershgorin's bound on M^-1/2 K_c M^-1/2 over
+    /// the repelling pairs within their contact distance (rad^2/s^2, see `omega2_now`).
+    row_bound: Vec<f64>,
+    /// Upper bound of omega^2 that contact adds at the last force evaluation (rad^2/s^2; 0:
+    /// no repelling pair within its contact distance, contact adds no stiffness): Gershgorin
+    /// on M^-1/2 K_c M^-1/2 over the pairs in contact, each of stiffness at most k_ij (the
+    /// pair Hessian's radial eigenvalue; its transverse one is negative), with at most
+    /// `max_partners` partners counted per particle,
+    ///   omega_c^2 <= max_i min(n_i, max_partners) max_j k_ij (1/m_i + 1/sqrt(m_i m_j)),
+    /// n_i the particle's partners in contact. At most [`Contact::omega2_bound`]. It depends on
+    /// the positions only (every pair within its contact distance is in any valid pair list),
+    /// so a restored state gives the same value.
+    pub omega2_now: f64,
     pub needs_rebuild: bool,
     /// Pair-list builds so far.
     pub searches: u64,
@@ -231,7 +239,8 @@ impl<const D: usize> Contact<D> {
             f_s: Vec::new(),
             hit: Vec::new(),
             touch: Vec::new(),
-            pressed: false,
+            row_bound: Vec::new(),
+            omega2_now: 0.0,
             same_body_touches: 0,
             needs_rebuild: true,
             searches: 0,
@@ -369,12 +378,15 @@ impl<const D: usize> Contact<D> {
         x0: &[Vect<D>],
         u: &[Vect<D>],
         body: &[u32],
+        mass: &[f64],
         force: &mut [Vect<D>],
     ) -> Option<Overlap> {
         let ns = self.surface_ids.len();
         self.f_s.resize(ns, Vect::<D>::zeros());
         self.hit.resize(ns, None);
         self.touch.resize(ns, 0);
+        self.row_bound.resize(ns, 0.0);
+        let max_partners = self.opts.max_partners;
         let frac = self.opts.overlap_fraction;
         let nb = self.n_bodies;
         let (ids, start, nbr, repel, reach, k0) = (
@@ -388,13 +400,15 @@ impl<const D: usize> Contact<D> {
         par_iter_mut!(self.f_s)
             .zip(par_iter_mut!(self.hit))
             .zip(par_iter_mut!(self.touch))
+            .zip(par_iter_mut!(self.row_bound))
             .enumerate()
-            .for_each(|(s, ((f_out, h_out), t_out))| {
+            .for_each(|(s, (((f_out, h_out), t_out), b_out))| {
                 let i = ids[s] as usize;
                 let bi = body[i] as usize;
                 let mut acc = Vect::<D>::zeros();
                 let mut hit = None;
                 let mut touch = 0u8;
+                let (mut partners, mut stiffest) = (0.0f64, 0.0f64);
                 for e in start[s] as usize..start[s + 1] as usize {
                     let j = nbr[e] as usize;
                     let r = rel(x0, u, i, j);
@@ -417,6 +431,11 @@ impl<const D: usize> Contact<D> {
                     if repel[e] {
                         touch |= TOUCH_REPELLING;
                         let k = k0[bi * nb + body[j] as usize];
+                        partners += 1.0;
+                        stiffest = stiffest.max(
+                            max_tangent_stiffness(k)
+                                * (1.0 / mass[i] + 1.0 / (mass[i] * mass[j]).sqrt()),
+                        );
                         // f_i = -f(r) r_ij / r
                         acc -= r * (force_magnitude(k, c, d) / d);
                     }
@@ -424,12 +443,13 @@ impl<const D: usize> Contact<D> {
                 *f_out = acc;
                 *h_out = hit;
                 *t_out = touch;
+                *b_out = partners.min(max_partners) * stiffest;
             });
         let touched = self.touch.iter().fold(0u8, |a, &t| a | t);
         if touched & TOUCH_SAME_BODY != 0 {
             self.same_body_touches += 1;
         }
-        self.pressed = touched & TOUCH_REPELLING != 0;
+        self.omega2_now = self.row_bound.iter().fold(0.0, |a, &b| a.max(b));
         for (s, &i) in self.surface_ids.iter().enumerate() {
             force[i as usize] += self.f_s[s];
         }

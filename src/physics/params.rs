@@ -193,9 +193,10 @@ pub struct ContactOptions {
     /// Verlet skin of the contact pair list as a fraction of l0: the list holds the pairs within
     /// (1 + skin) l0 and is rebuilt when a surface particle has moved more than skin l0 / 2 (-).
     pub skin: f64,
-    /// Effective contact partners per particle assumed by the stable-step bound (-): 2 covers
-    /// a lattice face pressed on a lattice face, aligned (one partner) or offset by half a
-    /// spacing (four partners at an angle, whose stiffness adds up to at most 2 k_c).
+    /// Most contact partners per particle counted by the stable step's bound (-): the bound
+    /// sums each particle's partners in contact, at most this many; 2 covers a lattice face
+    /// pressed on a lattice face, aligned (one partner) or offset by half a spacing (four
+    /// partners at an angle, whose stiffness along the normal adds up to at most 2 k_c).
     pub max_partners: f64,
 }
 

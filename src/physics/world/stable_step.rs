@@ -81,16 +81,18 @@ where
         self.omega_max
     }
 
-    /// Sets omega_max from the elastic model's and, while some repelling pair is within its
-    /// contact distance (`Contact::pressed`, the last force evaluation), contact's bound:
-    /// contact adds stiffness only to pairs in contact, so with none the elastic model alone
-    /// sets the step. The step that follows a force evaluation is then stable for the
-    /// stiffness at the state it starts from: a pair that comes into contact during a step
-    /// shortens the next one (an advance re-divides its remaining time, `advance_to_with`),
-    /// and the force law's onset (`contact::ONSET`) makes a pair's first touch soft.
+    /// Sets omega_max from the elastic model's and contact's bound on the stiffness it adds
+    /// at the last force evaluation (`Contact::omega2_now`: Gershgorin over the repelling pairs
+    /// within their contact distance; 0 with none, when the elastic model alone sets the
+    /// step). The step that follows a force evaluation is then stable for the stiffness at
+    /// the state it starts from: a pair that comes into contact during a step shortens the
+    /// next one (an advance re-divides its remaining time, `advance_to_with`), and the force
+    /// law's onset (`contact::ONSET`) makes a pair's first touch soft. The steps' change of
+    /// length is what the integrator's kick over half of each step takes care of
+    /// (`StepInputs::kick_dt`).
     pub(super) fn set_omega_max(&mut self) {
-        let c2 = if self.contact.pressed {
-            self.omega2_contact
+        let c2 = if self.contact.active {
+            self.contact.omega2_now.min(self.omega2_contact)
         } else {
             0.0
         };

@@ -53,9 +53,13 @@ where
         if self.contact.active {
             self.contact
                 .update_list(&self.p.x, &self.p.u, &self.p.body, &self.bonds);
-            overlap = self
-                .contact
-                .add_forces(&self.p.x0, &self.p.u, &self.p.body, &mut self.force);
+            overlap = self.contact.add_forces(
+                &self.p.x0,
+                &self.p.u,
+                &self.p.body,
+                &self.p.mass,
+                &mut self.force,
+            );
         }
         self.set_omega_max();
         // The followers of clamped faces carry no inertia of their own; their weight, loads

@@ -275,6 +275,45 @@ fn contact_enters_the_stable_step_while_bodies_touch() {
 }
 
 #[test]
+fn a_fast_pair_first_touches_on_the_soft_ramp_of_the_contact_law() {
+    // The cubes of `head_on` closing at 60 m/s: at the elastic step of the soft cubes (5.4e-4
+    // s) a pair would close by 0.65 l0 in one step, past the contact law's soft onset
+    // (`contact::ONSET` c) and near the overlap limit (0.5 c). The step is held to the one after
+    // which no closing pair gets deeper than `APPROACH_DEPTH` c (half the onset band) within its
+    // contact distance c = l0: the closest distance of the step in which the cubes first touch
+    // must not be below (1 - APPROACH_DEPTH) l0 (before the touch no force acts, so the step's
+    // velocities are the ones it was chosen with, and the bound is exact to round-off).
+    use mps_solid::physics::contact::APPROACH_DEPTH;
+    let mut sim = Simulation::new(&head_on(30.0, [0.0; 2], SolverOptions::default())).unwrap();
+    let elastic = sim.max_dt();
+    let w = match &mut sim {
+        Simulation::D3(m) => &mut m.world,
+        _ => unreachable!(),
+    };
+    assert!(
+        60.0 * elastic > 0.5 * L0,
+        "the test needs an elastic step that closes more than 0.5 l0 ({elastic} s)"
+    );
+    let mut shortest = f64::INFINITY;
+    for step in 0..10_000 {
+        let dt = w.max_dt();
+        shortest = shortest.min(dt);
+        w.step(dt).unwrap();
+        let d = closest(w);
+        if d < L0 {
+            assert!(
+                d >= (1.0 - APPROACH_DEPTH) * L0 * (1.0 - 1e-9),
+                "first touch at step {step}: closest {} l0 after a step of {dt} s",
+                d / L0
+            );
+            assert!(shortest < 0.5 * elastic, "{shortest} vs {elastic}");
+            return;
+        }
+    }
+    panic!("the cubes never touched");
+}
+
+#[test]
 fn overlap_stops_the_run_with_a_clear_error_not_nan() {
     // Contact a million times too soft: the cubes run into each other and the solver must stop
     // with an overlap error naming the time and both bodies, with a finite state.

@@ -110,11 +110,18 @@ where
         critical_step(self.omega_max, self.options.damping)
     }
 
-    /// The step the solver takes at most: the scene's fixed dt, or safety * critical_dt (s).
+    /// The step the solver takes at most: the scene's fixed dt, or safety * critical_dt, and
+    /// no longer than contact's approach step (`Contact::approach_step`: a pair closing fast
+    /// gets at most `contact::APPROACH_DEPTH` of its contact distance deep per step) (s).
     pub fn max_dt(&self) -> f64 {
-        self.options
-            .dt
-            .unwrap_or(self.options.safety * self.critical_dt())
+        self.options.dt.unwrap_or_else(|| {
+            let stable = self.options.safety * self.critical_dt();
+            if self.contact.active {
+                stable.min(self.contact.approach_step)
+            } else {
+                stable
+            }
+        })
     }
 
     /// Deterministic pseudo-random start vector of the eigenvalue measurements, which moves

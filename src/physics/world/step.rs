@@ -56,6 +56,7 @@ where
             overlap = self.contact.add_forces(
                 &self.p.x0,
                 &self.p.u,
+                &self.p.v,
                 &self.p.body,
                 &self.p.mass,
                 &mut self.force,

@@ -3,7 +3,8 @@
 //! before anything is allocated, and the default particle limit refuses a 170^3 cube at once.
 //! Issue 25: the default operator needs at most 3 kB per particle in 3D, and the estimate
 //! bounds every set-up stage. The memory of each stage, for BENCHMARKS.md, is printed by
-//! `cargo bench --bench memory`.
+//! `cargo bench --bench memory`. A fracture scene's peak over its first steps (the strain
+//! screen recorded) is bounded by the estimate too.
 #[path = "common/memory_counting.rs"]
 mod counting;
 use counting::{block, block_with, measure_stages, measured_peak, report, Counting, MEASURE, NOW};
@@ -172,4 +173,34 @@ fn second_order_needs_at_most_3_kb_per_particle_in_3d_and_the_estimate_bounds_ev
         "the stages were told: {:?}",
         m.stages.len()
     );
+}
+
+#[test]
+fn the_estimate_bounds_a_fracture_scene_with_its_strain_screen() {
+    // With eps_max set, the first step's fracture check records the strain screen
+    // (`physics::strain_screen`): each particle's displacement and slack and the cells of the
+    // reference lattice, about 57 B per particle in 3D. The memory guard's estimate must bound
+    // the peak of the build and of the steps that follow (the guard refuses a scene on it before
+    // anything is allocated), with the screen counted.
+    for (model, n) in [("corrected", 30), ("second_order", 20)] {
+        let mut s = block_with(3, n, 2.1, model);
+        s.solver.fracture_strain = Some(0.1);
+        let np = n * n * n;
+        let m = measure_stages(&s, 3);
+        let e = memory::estimate(&s);
+        eprintln!(
+            "{model} {np} particles with fracture: peak {} B = {:.0} B/particle (steps {:.0}, built {:.0}), estimate {:.0} B/particle",
+            m.peak(),
+            m.peak() as f64 / np as f64,
+            m.steps_peak as f64 / np as f64,
+            m.built as f64 / np as f64,
+            e.bytes as f64 / np as f64
+        );
+        assert!(
+            e.bytes as usize >= m.peak(),
+            "{model}: estimate {} B below the peak {} B",
+            e.bytes,
+            m.peak()
+        );
+    }
 }

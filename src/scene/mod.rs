@@ -15,7 +15,7 @@ pub mod velocity;
 
 pub use build::{Model, ProbeAt};
 use limits::num;
-pub use resolution::SceneWarning;
+pub use resolution::{SceneWarning, THIN_BENDING_ERRORS};
 pub use shape::{Cylinder, HalfSpace, MeshSpec, Shape, Sphere};
 pub use velocity::{
     AngularVelocity, BodyVelocity, ModeShape, ModeShapeProfile, Omega, TableProfile, VelocityField,

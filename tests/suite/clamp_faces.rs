@@ -28,15 +28,8 @@ fn natural_clamps_match_the_mirror_clamp() {
     ] {
         let case = single_box(2, 4, style);
         let b = linear_bending(&case.scene).unwrap();
-        // No warning of reduced accuracy (the one of a body 4 particles thick may stay).
-        assert!(
-            b.warnings
-                .iter()
-                .all(|w| !w.starts_with("boundaries") && !w.contains("first order")),
-            "{}: {:?}",
-            case.name,
-            b.warnings
-        );
+        // No warning of reduced accuracy.
+        assert!(b.warnings.is_empty(), "{}: {:?}", case.name, b.warnings);
         let (ef, et) = (b.f1 / r.f1 - 1.0, b.tip / r.tip - 1.0);
         assert!(
             ef.abs() < 3e-3 && et.abs() < 3e-3,

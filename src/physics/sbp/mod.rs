@@ -45,6 +45,10 @@ mod least_norm;
 mod symmetry;
 use least_norm::{NullSpaceConstraints, MAX_ITERATIONS};
 
+/// Fewest particles across a box, along every axis, whose faces the closure serves (with the
+/// mirror images of its clamped faces); a thinner body keeps the plain fits.
+pub const MIN_ACROSS: usize = 3;
+
 /// End corrections of the cell-centred midpoint rule on the first three layers from a face:
 /// with them the 1D rule integrates quadratics exactly (Euler-Maclaurin: the midpoint sum of a
 /// cubic misses h^2 / 24 (f'(b) - f'(a))), and by symmetry cubics.
@@ -324,8 +328,8 @@ where
     {
         return Err("it is not a filled box (with its mirror images)".into());
     }
-    if ext.iter().any(|&e| e < 3) {
-        return Err("it is less than 3 particles across".into());
+    if ext.iter().any(|&e| e < MIN_ACROSS) {
+        return Err(format!("it is less than {MIN_ACROSS} particles across"));
     }
     // Where the virtual box's faces are (spacings beyond its outer particles, per axis and
     // side): half a spacing for a body of boxes; for a box solid, where its faces are, except

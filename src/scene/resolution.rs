@@ -45,25 +45,29 @@ fn full_neighbourhood<const D: usize>(re_factor: f64) -> usize {
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
-/// How many particles thick most of a body is, and along which axis: per particle the
-/// shortest of its runs of lattice neighbours along the axes (each counted up to `cap`), then
-/// the most common of those (ties: the thinner). A bounding extent would count a clamp block
-/// wider than the beam it holds, and a thin arm of a wide body not at all.
-fn typical_thickness<const D: usize>(pts: &[Vect<D>], dp: f64, cap: usize) -> (usize, usize)
+/// How many particles thick a body is where it is thickest, and along which axis: for each
+/// particle on the lattice of the first one (its first box's; a grip block half a spacing off
+/// is left out), the shortest of its runs of lattice neighbours along the axes (each counted up
+/// to `cap`); the largest of those. A bounding extent would count a clamp block wider than the
+/// beam it holds, and the most common run the short chords at a round body's rim.
+fn thickness<const D: usize>(pts: &[Vect<D>], dp: f64, cap: usize) -> (usize, usize)
 where
     Space: Dim<D>,
 {
-    let lo = pts.iter().fold(pts[0], |m, p| m.inf(p));
-    let key =
-        |p: &Vect<D>| -> [i64; D] { std::array::from_fn(|a| ((p[a] - lo[a]) / dp).round() as i64) };
-    let cells: std::collections::HashSet<[i64; D]> = pts.iter().map(key).collect();
-    let mut tally = vec![[0usize; D]; cap + 1];
-    for p in pts {
-        let k = key(p);
+    let o = pts[0];
+    let at = |p: &Vect<D>| -> Option<[i64; D]> {
+        let f: [f64; D] = std::array::from_fn(|a| (p[a] - o[a]) / dp);
+        f.iter()
+            .all(|x| (x - x.round()).abs() < 1e-6)
+            .then(|| std::array::from_fn(|a| f[a].round() as i64))
+    };
+    let cells: std::collections::HashSet<[i64; D]> = pts.iter().filter_map(at).collect();
+    let mut thickest = (0, 1);
+    for k in &cells {
         let run = |a: usize| {
             let mut n = 1;
             for dir in [-1i64, 1] {
-                let mut q = k;
+                let mut q = *k;
                 loop {
                     q[a] += dir;
                     if n >= cap || !cells.contains(&q) {
@@ -78,17 +82,11 @@ where
             .map(|a| (a, run(a)))
             .min_by_key(|&(_, n)| n)
             .expect("D >= 2");
-        tally[n][axis] += 1;
-    }
-    let mut best = (0, 1, 0);
-    for (n, per_axis) in tally.iter().enumerate() {
-        for (a, &c) in per_axis.iter().enumerate() {
-            if c > best.2 {
-                best = (a, n, c);
-            }
+        if n > thickest.1 {
+            thickest = (axis, n);
         }
     }
-    (best.0, best.1)
+    thickest
 }
 
 /// Bending errors of a cantilever only a few particles thick, where no particle has a full
@@ -110,11 +108,12 @@ pub const THIN_BENDING_ERRORS: [(ElasticModel, usize, usize, f64, f64); 8] = [
     (ElasticModel::Corrected, 2, 4, 7.0, -3.3),
 ];
 
-/// The warning on a body nowhere thicker than `needed - 1` particles (`n` along `axis`, its
-/// thinnest), in the terms of the scene's operator: the measured effect on a cantilever of its
+/// The warning on a body nowhere thicker than `needed - 1` particles (`n` along `axis` where
+/// it is thickest, [`thickness`]), in the terms of the scene's operator: the measured effect on a cantilever of its
 /// thickness where there is one (`THIN_BENDING_ERRORS`), and the remedy. None for the default
 /// operator on a body it closes (`n` at least `sbp::MIN_ACROSS`): its faces are then second
-/// order, and a body of several boxes it cannot close has its own warning after the build.
+/// order, and a body of several boxes it cannot close has its own warning after the build (a
+/// body filled from shapes, one of its shapes).
 fn thin_body_message(
     scene: &Scene,
     d: usize,
@@ -222,24 +221,30 @@ where
     let mut any_flat = 0usize;
     // Per particle, in parallel: its bond count and the eigenpairs of its shape tensor where
     // that is singular (the directions it lacks); tallied per box in particle order.
+    // A full neighbourhood is every lattice offset within re: neighbours off the particle's
+    // lattice (a grip block half a spacing off the beam it holds) do not make one, however
+    // many bonds they add.
+    let on_lattice = |r: &Vect<D>| (0..D).all(|a| ((r[a] / dp) - (r[a] / dp).round()).abs() < 1e-6);
     let per_particle = crate::physics::par::map(pts, |p| {
         let mut count = 0usize;
+        let mut lattice = 0usize;
         let mut shape = Mat::<D>::zeros();
         grid.for_each_near(pts, p, re, |j| {
             let r = pts[j as usize] - p;
             if is_bond(r.norm(), re) {
                 count += 1;
+                lattice += usize::from(on_lattice(&r));
                 shape += r * r.transpose() / r.norm_squared();
             }
         });
         if count == 0 {
-            return (count, None);
+            return (count, lattice, None);
         }
         let (vals, vecs) = sym_eigen(&shape);
         let top = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         let weak: Vec<usize> = (0..D).filter(|&e| vals[e].abs() <= 1e-10 * top).collect();
         if weak.is_empty() {
-            return (count, None);
+            return (count, lattice, None);
         }
         // Per weak direction: the axis it lies along, if any.
         let dirs: Vec<Option<usize>> = weak
@@ -249,10 +254,10 @@ where
                 (0..D).find(|&a| dir[a].abs() > 1.0 - 1e-6)
             })
             .collect();
-        (count, Some(dirs))
+        (count, lattice, Some(dirs))
     });
-    for (i, (count, weak)) in per_particle.into_iter().enumerate() {
-        any_full |= count >= full;
+    for (i, (count, lattice, weak)) in per_particle.into_iter().enumerate() {
+        any_full |= lattice >= full;
         let bx = box_of[i] as usize;
         if count == 0 {
             isolated[bx] += 1;
@@ -344,7 +349,7 @@ where
         }
     }
     if !any_full && any_flat < pts.len() && !pts.is_empty() {
-        let (axis, n) = typical_thickness(pts, dp, needed);
+        let (axis, n) = thickness(pts, dp, needed);
         if let Some(message) = thin_body_message(scene, D, n, AXES[axis], full, needed) {
             out.push(SceneWarning { field: bf, message });
         }

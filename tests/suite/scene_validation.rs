@@ -752,6 +752,31 @@ fn under_resolved_geometry_is_warned_with_its_field() {
             && w[0].contains("(dp <= 0.006 m), or use the default operator (solver.model second_order)"),
         "{w:?}"
     );
+    // A round rod 4 particles across is 4 thick where it is thickest (its rim's chords are
+    // shorter): no thin-body warning with the default operator, only the one of a body filled
+    // from shapes; 2 across is warned of.
+    let rod = |dp: f64| {
+        let v = serde_json::json!({
+            "name": "rod", "dimension": 3, "particle_spacing": dp,
+            "bodies": [{ "name": "rod",
+                         "material": { "density": 1000.0, "young": 1e6, "poisson": 0.3 },
+                         "shapes": [{"cylinder": {"center": [0.25, 0.0, 0.0], "axis": [1.0, 0.0, 0.0],
+                                                  "radius": 0.05, "length": 0.5}}] }],
+            "end_time": 0.01, "output_interval": 0.001
+        });
+        Scene::from_json(&v.to_string()).unwrap()
+    };
+    let w = messages(&rod(0.025));
+    assert!(
+        w.len() == 1 && w[0].contains("is filled from shapes"),
+        "{w:?}"
+    );
+    let w = messages(&rod(0.05));
+    assert!(
+        w.iter()
+            .any(|w| w.contains("along y it spans 2 particles), too thin for the default operator")),
+        "{w:?}"
+    );
     // Two particles thick: too thin for the default operator's closure too.
     let w = messages(&thin(0.02, "second_order"));
     assert!(

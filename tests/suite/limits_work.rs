@@ -266,18 +266,20 @@ fn the_bound_ends_the_closure_when_it_is_reached() {
     // bonds stage to give a larger one), never past it by more than an iteration.
     let mut s = clamped_cube();
     // 18 particles across (the fixture's 15 close in 4-6 s on a loaded machine since the coarse
-    // correction of boxes solved whole): its closure runs on a reduced box, over 10 s, and the
-    // estimate after its bonds stays under the bound.
+    // correction of boxes solved whole): its closure runs on a reduced box, over 10 s on the
+    // machines of 2026-12-05, 3.5-5 s on the AVX-512 one of 2026-12-07 (where a bound of 4 s
+    // was passed by the closure's end in one run of four), and the estimate after its bonds
+    // stays under the bound (or refuses it, which the test accepts).
     let dp = 0.3 / 18.0;
     s.particle_spacing = dp;
     s.bodies[0].boxes[1].min[0] = -3.0 * dp;
     s.boundaries[0].region.min[0] = -3.0 * dp - 0.001;
-    let bound = 4.0;
+    let bound = 2.0;
     s.solver.max_setup_seconds = bound;
     let t = Instant::now();
     let e = Simulation::new(&s).err().expect("refused").to_string();
     let took = t.elapsed().as_secs_f64();
-    assert!(e.contains("solver.max_setup_seconds = 4 s"), "{e}");
+    assert!(e.contains("solver.max_setup_seconds = 2 s"), "{e}");
     if !e.contains("the set-up would take about") {
         assert!(
             e.contains("during its closure stage")

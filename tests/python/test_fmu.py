@@ -219,6 +219,46 @@ def test_rollback_with_get_and_set_fmu_state():
         slave.freeInstance()
 
 
+def test_instance_reused_with_reset_rewinds_instead_of_building():
+    """fmpy's loop over one instance (simulate_fmu with fmu_instance, then reset): the same
+    parameters rewind the model built for them (no second set-up, the same numbers bit for
+    bit); other parameters build anew, and the first ones come back as they were."""
+    from fmpy import instantiate_fmu
+
+    fmu = fmu_path("small3d")
+    md = read_model_description(fmu)
+    unzipdir = extract(fmu)
+    messages = []
+
+    def logger(env, name, status, category, message):
+        messages.append(message.decode() if isinstance(message, bytes) else str(message))
+
+    inst = instantiate_fmu(unzipdir, md, "CoSimulation", debug_logging=True, logger=logger)
+    young = next(v.name for v in md.modelVariables if v.name.endswith(".young"))
+    try:
+        def run(start_values):
+            messages.clear()
+            res = simulate_fmu(unzipdir, model_description=md, fmu_instance=inst,
+                               stop_time=0.02, output_interval=0.002, output=["tip.uz"],
+                               start_values=start_values)
+            inst.reset()
+            return res["tip.uz"], list(messages)
+
+        first, log = run({})
+        assert any("built the model:" in m for m in log), log
+        again, log = run({})
+        assert any("rewound the model built" in m for m in log), log
+        assert not any("built the model:" in m for m in log), log
+        assert np.array_equal(again, first)
+        stiff, log = run({young: 2 * scene_of(fmu)["bodies"][0]["material"]["young"]})
+        assert any("built the model:" in m for m in log), log
+        assert not np.array_equal(stiff, first)
+        back, _ = run({})
+        assert np.array_equal(back, first)
+    finally:
+        inst.freeInstance()
+
+
 def test_case3_with_fractured_surface_contact_completes_and_breaks_after_contact():
     # The paper's case 3 through fmpy: the cube reaches the block at gap / speed = 0.07 s, so no
     # bond may break before that; bonds break afterwards (fracture_count rises from zero) and the

@@ -1,7 +1,7 @@
 //! FMU state: the complete state of an instance as plain data ([`FmuState`]),
 //! fmi2Get/Set/FreeFMUstate, and its serialised form with the checks of a state handed in.
 use super::inputs::Inputs;
-use super::lifecycle::{Instance, Mode};
+use super::lifecycle::{Built, Instance, Mode};
 use super::status::{FmiError, FmiResult};
 use crate::scene::Scene;
 use crate::sim::{SimState, Simulation};
@@ -121,7 +121,10 @@ impl Instance {
     pub fn set_fmu_state(&mut self, s: &FmuState) -> FmiResult<()> {
         self.require("fmi2SetFMUstate", &Self::STATE_MODES)?;
         self.check_state(s)?;
-        let rebuild = s.params != self.params || self.sim.is_none() || self.stale;
+        // The model in hand serves a state of the parameters it was built with (also after
+        // fmi2Reset or parameters set in between); another state's parameters need a build.
+        let rebuild =
+            self.sim.is_none() || !self.built.as_ref().is_some_and(|b| b.params == s.params);
         let restore = |sim: &mut Simulation| -> FmiResult<()> {
             if sim.particles() as u64 != s.particles {
                 return Err(FmiError::Invalid(format!(
@@ -135,12 +138,20 @@ impl Instance {
         };
         if rebuild {
             let params = &s.params;
+            let started = std::time::Instant::now();
             let mut sim = self.pool.install(|| Simulation::new(params)).map_err(|e| {
                 FmiError::Invalid(format!("cannot build the FMU state's model: {e}"))
             })?;
+            let initial = self.pool.install(|| sim.state());
+            let seconds = started.elapsed().as_secs_f64();
             self.pool.install(|| restore(&mut sim))?;
             let outputs = self.cheap_outputs(&sim)?;
             self.sim = Some(sim);
+            self.built = Some(Built {
+                params: s.params.clone(),
+                initial,
+                seconds,
+            });
             self.params = s.params.clone();
             self.stale = false;
             self.store_outputs(outputs);
@@ -156,7 +167,11 @@ impl Instance {
                 self.cheap_outputs(sim)
             });
             match outputs {
-                Ok(o) => self.store_outputs(o),
+                Ok(o) => {
+                    self.store_outputs(o);
+                    self.params = s.params.clone();
+                    self.stale = false;
+                }
                 Err(e) => {
                     let sim = self.sim.as_mut().expect("built");
                     self.pool

@@ -12,7 +12,7 @@ use crate::fmi::variables::{Quantity, VariableTable};
 use crate::physics::world::{SetupObserver, SetupStage};
 use crate::scene::limits::num;
 use crate::scene::Scene;
-use crate::sim::Simulation;
+use crate::sim::{SimState, Simulation};
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -95,6 +95,14 @@ impl SetupObserver for SetupLog<'_> {
     }
 }
 
+/// The parameters a simulation was built from and its initial state.
+pub(super) struct Built {
+    pub(super) params: Scene,
+    pub(super) initial: SimState,
+    /// Wall time of the build (s), for the log of a reuse.
+    pub(super) seconds: f64,
+}
+
 /// One FMU instance.
 pub struct Instance {
     name: String,
@@ -105,6 +113,10 @@ pub struct Instance {
     pub(super) params: Scene,
     pub(super) table: VariableTable,
     pub(super) sim: Option<Simulation>,
+    /// What `sim` was built from and its state right after the build: fmi2Reset rewinds the
+    /// built model to it, and a build for the same parameters restores it instead of
+    /// building again (the set-up, seconds for a closed body, runs once per parameter set).
+    pub(super) built: Option<Built>,
     /// Parameters changed since the simulation was built.
     pub(super) stale: bool,
     pub(super) pool: WorkerPool,
@@ -192,6 +204,7 @@ impl Instance {
             scene,
             table,
             sim: None,
+            built: None,
             stale: true,
             pool,
             mode: Mode::Instantiated,
@@ -300,7 +313,7 @@ impl Instance {
                 )));
             }
         }
-        if self.sim.as_ref().is_some_and(|s| s.time() != 0.0) {
+        if !self.stale && self.sim.as_ref().is_some_and(|s| s.time() != 0.0) {
             return Err(FmiError::IllegalCall(
                 "fmi2SetupExperiment after a restored FMU state that is not at the start: the \
                  state already fixes the time"
@@ -319,6 +332,10 @@ impl Instance {
         if !self.stale && self.sim.is_some() {
             return Ok(());
         }
+        if self.rewind_to_built()? {
+            return self.refresh_outputs();
+        }
+        let started = std::time::Instant::now();
         let params = &self.params;
         // The stages reach the host's logger as they end (the logger is called with the
         // instance locked: a logger that calls back into it is refused, see ffi::guard).
@@ -347,9 +364,43 @@ impl Instance {
                 self.log.warn(w.to_string());
             }
         }
+        let initial = self.pool.install(|| sim.state());
+        self.built = Some(Built {
+            params: self.params.clone(),
+            initial,
+            seconds: started.elapsed().as_secs_f64(),
+        });
         self.sim = Some(sim);
         self.stale = false;
         self.refresh_outputs()
+    }
+
+    /// Rewinds the built model to its initial state when it was built from the current
+    /// parameters (after fmi2Reset, or parameters set back to those of the build): the same
+    /// model as a new build gives, bit for bit, without its set-up. False: a build is needed.
+    pub(super) fn rewind_to_built(&mut self) -> FmiResult<bool> {
+        let (Some(sim), Some(built)) = (self.sim.as_mut(), self.built.as_ref()) else {
+            return Ok(false);
+        };
+        if built.params != self.params {
+            return Ok(false);
+        }
+        let restored = self.pool.install(|| sim.set_state(&built.initial));
+        if let Err(e) = restored {
+            // Not expected (the state is the model's own); a build is the way back.
+            self.log.event(&format!(
+                "the built model could not be rewound ({e}); building it again"
+            ));
+            self.sim = None;
+            self.built = None;
+            return Ok(false);
+        }
+        self.log.event(&format!(
+            "rewound the model built for these parameters to its initial state (its set-up of {:.3} s skipped)",
+            built.seconds
+        ));
+        self.stale = false;
+        Ok(true)
     }
 
     /// The cheap outputs (probes, reactions, counters) of a simulation, in table order (None
@@ -479,10 +530,11 @@ impl Instance {
     }
 
     /// fmi2Reset: back to the instantiated state with the scene's parameters and start values.
+    /// The built model is kept: the next build rewinds it to its initial state if the
+    /// parameters are those it was built with (`rewind_to_built`), and builds anew otherwise.
     pub fn reset(&mut self) -> FmiResult<()> {
         self.params = self.scene.clone();
         self.inputs = Inputs::start(&self.scene);
-        self.sim = None;
         self.stale = true;
         self.outputs = vec![0.0; self.table.vars.len()];
         self.energies_fresh = false;
@@ -499,5 +551,112 @@ impl Instance {
     /// An unsupported function: logs why and fails.
     pub fn unsupported(function: &str, why: &str) -> FmiError {
         FmiError::Invalid(format!("{function} is not supported: {why}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_support::small2d;
+    use super::Instance;
+    use crate::fmi::variables::{Causality, VarType};
+    use crate::sim::Simulation;
+
+    /// Where the built model's particle positions live: the same address means the same model.
+    fn model_id(i: &Instance) -> usize {
+        match i.sim.as_ref().expect("built") {
+            Simulation::D2(m) => m.world.p.x.as_ptr() as usize,
+            Simulation::D3(m) => m.world.p.x.as_ptr() as usize,
+        }
+    }
+
+    /// Every Real output (energies too), as bits.
+    fn outputs(i: &mut Instance) -> Vec<u64> {
+        let vrs: Vec<u32> = i
+            .table()
+            .vars
+            .iter()
+            .filter(|v| v.causality == Causality::Output && v.ty == VarType::Real)
+            .map(|v| v.value_reference)
+            .collect();
+        let mut out = vec![0.0; vrs.len()];
+        i.get_real(&vrs, &mut out).unwrap();
+        out.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// Initialises at t = 0 and takes the fixture's 3 steps; the log of the initialisation.
+    fn run(i: &mut Instance) -> Vec<String> {
+        i.setup_experiment(0.0, None).unwrap();
+        i.enter_initialization_mode().unwrap();
+        i.exit_initialization_mode().unwrap();
+        let log = i.take_log().into_iter().map(|r| r.message).collect();
+        for k in 0..3 {
+            i.do_step(k as f64 * 0.002, 0.002).unwrap();
+        }
+        log
+    }
+
+    fn said(log: &[String], what: &str) -> bool {
+        log.iter().any(|m| m.contains(what))
+    }
+
+    #[test]
+    fn reset_rewinds_the_built_model_to_the_same_run() {
+        // fmpy's loops over one instance (simulate_fmu with fmu_instance, then reset) paid the
+        // whole set-up on every run. The same parameters now rewind the model built for them:
+        // the same outputs, bit for bit, without a build.
+        let mut i = small2d();
+        let first = outputs(&mut i);
+        let id = model_id(&i);
+        i.set_debug_logging(true, &[]).unwrap();
+        i.reset().unwrap();
+        let log = run(&mut i);
+        assert!(said(&log, "rewound the model built"), "{log:?}");
+        assert!(!said(&log, "built the model:"), "{log:?}");
+        assert_eq!(model_id(&i), id, "the model was built again");
+        assert_eq!(outputs(&mut i), first);
+    }
+
+    #[test]
+    fn other_parameters_after_reset_build_anew_and_the_first_come_back() {
+        let mut i = small2d();
+        let first = outputs(&mut i);
+        i.set_debug_logging(true, &[]).unwrap();
+        let young = i.table().by_name("strip.young").unwrap().value_reference;
+        i.reset().unwrap();
+        i.set_real(&[young], &[2.0e6]).unwrap();
+        let log = run(&mut i);
+        assert!(said(&log, "built the model:"), "{log:?}");
+        let stiffer = outputs(&mut i);
+        assert_ne!(stiffer, first, "a stiffer strip must move differently");
+        // Back to the scene's parameters: built anew (the kept model is the stiffer one),
+        // the first run's bits; then rewound.
+        i.reset().unwrap();
+        let log = run(&mut i);
+        assert!(said(&log, "built the model:"), "{log:?}");
+        assert_eq!(outputs(&mut i), first);
+        i.reset().unwrap();
+        i.set_real(&[young], &[2.0e6]).unwrap();
+        i.set_real(&[young], &[1.0e6]).unwrap();
+        let log = run(&mut i);
+        assert!(said(&log, "rewound the model built"), "{log:?}");
+        assert_eq!(outputs(&mut i), first);
+    }
+
+    #[test]
+    fn a_state_of_the_kept_model_restores_without_a_build_after_reset() {
+        let mut i = small2d();
+        let state = i.get_fmu_state().unwrap();
+        let at3 = outputs(&mut i);
+        let id = model_id(&i);
+        i.do_step(0.006, 0.002).unwrap();
+        i.reset().unwrap();
+        i.set_fmu_state(&state).unwrap();
+        assert_eq!(model_id(&i), id, "the model was built again");
+        assert_eq!(outputs(&mut i), at3);
+        i.do_step(0.006, 0.002).unwrap();
+        // And the run from there is the one a fresh instance takes.
+        let mut fresh = small2d();
+        fresh.do_step(0.006, 0.002).unwrap();
+        assert_eq!(outputs(&mut i), outputs(&mut fresh));
     }
 }

@@ -219,39 +219,40 @@ def test_rollback_with_get_and_set_fmu_state():
         slave.freeInstance()
 
 
-def test_instance_reused_with_reset_rewinds_instead_of_building():
+def test_instance_reused_with_reset_rewinds_instead_of_building(capfd):
     """fmpy's loop over one instance (simulate_fmu with fmu_instance, then reset): the same
     parameters rewind the model built for them (no second set-up, the same numbers bit for
-    bit); other parameters build anew, and the first ones come back as they were."""
+    bit); other parameters build anew, taking the first build's closure (the parameters change
+    no geometry), and the first ones come back as they were. The log is read from fmpy's own
+    logger (stdout): a logger callback of ours would leave fmpy's logging proxy pointing at it
+    once it is collected, and the next instance of the process would call it (a crash in
+    fmpy's logging.so, not in the FMU)."""
     from fmpy import instantiate_fmu
 
     fmu = fmu_path("small3d")
     md = read_model_description(fmu)
     unzipdir = extract(fmu)
-    messages = []
-
-    def logger(env, name, status, category, message):
-        messages.append(message.decode() if isinstance(message, bytes) else str(message))
-
-    inst = instantiate_fmu(unzipdir, md, "CoSimulation", debug_logging=True, logger=logger)
+    inst = instantiate_fmu(unzipdir, md, "CoSimulation", debug_logging=True)
     young = next(v.name for v in md.modelVariables if v.name.endswith(".young"))
     try:
         def run(start_values):
-            messages.clear()
+            capfd.readouterr()
             res = simulate_fmu(unzipdir, model_description=md, fmu_instance=inst,
                                stop_time=0.02, output_interval=0.002, output=["tip.uz"],
                                start_values=start_values)
             inst.reset()
-            return res["tip.uz"], list(messages)
+            out, err = capfd.readouterr()
+            return res["tip.uz"], out + err
 
         first, log = run({})
-        assert any("built the model:" in m for m in log), log
+        assert "built the model:" in log, log
         again, log = run({})
-        assert any("rewound the model built" in m for m in log), log
-        assert not any("built the model:" in m for m in log), log
+        assert "rewound the model built" in log, log
+        assert "built the model:" not in log, log
         assert np.array_equal(again, first)
         stiff, log = run({young: 2 * scene_of(fmu)["bodies"][0]["material"]["young"]})
-        assert any("built the model:" in m for m in log), log
+        assert "built the model:" in log, log
+        assert "as an earlier set-up of this geometry closed them" in log, log
         assert not np.array_equal(stiff, first)
         back, _ = run({})
         assert np.array_equal(back, first)

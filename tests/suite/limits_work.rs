@@ -367,3 +367,82 @@ fn mps_run_reports_a_long_set_up_on_stderr() {
         );
     }
 }
+
+/// Records the stages and lends a memo (as an FMU instance does across its builds).
+#[derive(Default)]
+struct WithMemo {
+    stages: Stages,
+    memo: mps_solid::physics::world::SetupMemo,
+}
+
+impl mps_solid::physics::world::SetupObserver for WithMemo {
+    fn stage_done(&self, stage: mps_solid::physics::world::SetupStage, seconds: f64, detail: &str) {
+        self.stages.stage_done(stage, seconds, detail);
+    }
+    fn memo(&self) -> Option<&mps_solid::physics::world::SetupMemo> {
+        Some(&self.memo)
+    }
+}
+
+impl WithMemo {
+    /// What the last set-up's closure stage said.
+    fn last_closure(&self) -> String {
+        let v = self.stages.0.borrow();
+        v.iter()
+            .rev()
+            .find(|x| x.0 == "closure")
+            .expect("closure stage")
+            .2
+            .clone()
+    }
+}
+
+#[test]
+fn a_closure_is_taken_from_an_earlier_set_up_of_the_same_geometry_only() {
+    // An FMU instance built again with other parameters (materials, step, damping: never the
+    // geometry) paid the closure again, its longest stage. A set-up now takes the closure an
+    // earlier one kept for the same geometry (hashed: positions, bonds, clamps, faces), and
+    // the model it builds is the one a set-up from scratch builds, bit for bit; another
+    // geometry computes its own.
+    let s = small2d();
+    let obs = WithMemo::default();
+    Simulation::new_observed(&s, &obs).unwrap();
+    assert!(obs.memo.holds_closure());
+    assert!(
+        !obs.last_closure().contains("earlier"),
+        "{}",
+        obs.last_closure()
+    );
+    let same_as_fresh = |scene: &Scene, obs: &WithMemo| {
+        let mut a = Simulation::new_observed(scene, obs).unwrap();
+        let mut b = Simulation::new(scene).unwrap();
+        a.advance_to(0.01).unwrap();
+        b.advance_to(0.01).unwrap();
+        assert!(a.state() == b.state(), "the built models differ");
+        assert_eq!(
+            a.probe_displacement(0).map(f64::to_bits),
+            b.probe_displacement(0).map(f64::to_bits)
+        );
+    };
+    let mut other_params = s.clone();
+    other_params.bodies[0].material.young *= 2.0;
+    other_params.bodies[0].material.density *= 1.5;
+    other_params.bodies[0].material.poisson = 0.25;
+    other_params.solver.damping = 3.0;
+    same_as_fresh(&other_params, &obs);
+    assert!(
+        obs.last_closure()
+            .contains("as an earlier set-up of this geometry closed them"),
+        "{}",
+        obs.last_closure()
+    );
+    let mut longer = s.clone();
+    longer.bodies[0].boxes[0].max[0] += 0.05;
+    longer.loads.clear();
+    same_as_fresh(&longer, &obs);
+    assert!(
+        !obs.last_closure().contains("earlier"),
+        "{}",
+        obs.last_closure()
+    );
+}

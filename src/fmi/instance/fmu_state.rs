@@ -1,7 +1,7 @@
 //! FMU state: the complete state of an instance as plain data ([`FmuState`]),
 //! fmi2Get/Set/FreeFMUstate, and its serialised form with the checks of a state handed in.
 use super::inputs::Inputs;
-use super::lifecycle::{Built, Instance, Mode};
+use super::lifecycle::{Built, Instance, Mode, SetupControl, SetupLog};
 use super::status::{FmiError, FmiResult};
 use crate::scene::Scene;
 use crate::sim::{SimState, Simulation};
@@ -139,9 +139,19 @@ impl Instance {
         if rebuild {
             let params = &s.params;
             let started = std::time::Instant::now();
-            let mut sim = self.pool.install(|| Simulation::new(params)).map_err(|e| {
-                FmiError::Invalid(format!("cannot build the FMU state's model: {e}"))
-            })?;
+            // (Not cancellable, as before: fmi2CancelStep stops initialisation builds.)
+            let control = SetupControl::default();
+            let observer = SetupLog {
+                logger: self.log.immediate("logEvents"),
+                control: &control,
+                memo: &self.memo,
+            };
+            let mut sim = self
+                .pool
+                .install(|| Simulation::new_observed(params, &observer))
+                .map_err(|e| {
+                    FmiError::Invalid(format!("cannot build the FMU state's model: {e}"))
+                })?;
             let initial = self.pool.install(|| sim.state());
             let seconds = started.elapsed().as_secs_f64();
             self.pool.install(|| restore(&mut sim))?;

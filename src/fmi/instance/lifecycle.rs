@@ -9,7 +9,7 @@ use super::status::{FmiError, FmiResult};
 use super::worker_pool::WorkerPool;
 use crate::fmi::model_description::guid;
 use crate::fmi::variables::{Quantity, VariableTable};
-use crate::physics::world::{SetupObserver, SetupStage};
+use crate::physics::world::{SetupMemo, SetupObserver, SetupStage};
 use crate::scene::limits::num;
 use crate::scene::Scene;
 use crate::sim::{SimState, Simulation};
@@ -64,9 +64,11 @@ impl SetupControl {
 
 /// The set-up's observer of an instance: each stage to the host's logger as it ends (category
 /// logEvents), and the stop requested by fmi2CancelStep.
-struct SetupLog<'a> {
-    logger: Option<Arc<dyn Logger>>,
-    control: &'a SetupControl,
+pub(super) struct SetupLog<'a> {
+    pub(super) logger: Option<Arc<dyn Logger>>,
+    pub(super) control: &'a SetupControl,
+    /// The instance's closure from its earlier builds (the parameters change no geometry).
+    pub(super) memo: &'a SetupMemo,
 }
 
 impl SetupObserver for SetupLog<'_> {
@@ -93,6 +95,9 @@ impl SetupObserver for SetupLog<'_> {
     fn stop_flag(&self) -> Option<&AtomicBool> {
         Some(&self.control.cancel)
     }
+    fn memo(&self) -> Option<&SetupMemo> {
+        Some(self.memo)
+    }
 }
 
 /// The parameters a simulation was built from and its initial state.
@@ -117,6 +122,9 @@ pub struct Instance {
     /// built model to it, and a build for the same parameters restores it instead of
     /// building again (the set-up, seconds for a closed body, runs once per parameter set).
     pub(super) built: Option<Built>,
+    /// What its builds keep for the next (the second-order operator's closure: the
+    /// parameters change the materials, the step and the damping, never the geometry).
+    pub(super) memo: SetupMemo,
     /// Parameters changed since the simulation was built.
     pub(super) stale: bool,
     pub(super) pool: WorkerPool,
@@ -205,6 +213,7 @@ impl Instance {
             table,
             sim: None,
             built: None,
+            memo: SetupMemo::default(),
             stale: true,
             pool,
             mode: Mode::Instantiated,
@@ -342,6 +351,7 @@ impl Instance {
         let observer = SetupLog {
             logger: self.log.immediate("logEvents"),
             control: &self.control,
+            memo: &self.memo,
         };
         self.control.cancel.store(false, Ordering::SeqCst);
         self.control.building.store(true, Ordering::SeqCst);
@@ -628,6 +638,16 @@ mod tests {
         assert!(said(&log, "built the model:"), "{log:?}");
         let stiffer = outputs(&mut i);
         assert_ne!(stiffer, first, "a stiffer strip must move differently");
+        // That build took the closure of the first (the parameters change no geometry), and
+        // its model is the one a build from scratch gives, bit for bit.
+        assert!(i.memo.holds_closure());
+        let mut fresh = small2d();
+        fresh.reset().unwrap();
+        (fresh.sim, fresh.built, fresh.memo) = (None, None, Default::default());
+        fresh.set_real(&[young], &[2.0e6]).unwrap();
+        run(&mut fresh);
+        assert!(fresh.memo.holds_closure());
+        assert_eq!(outputs(&mut fresh), stiffer);
         // Back to the scene's parameters: built anew (the kept model is the stiffer one),
         // the first run's bits; then rewound.
         i.reset().unwrap();

@@ -42,8 +42,10 @@ use super::second_order::SecondOrder;
 use super::stencils::Stencils;
 
 mod least_norm;
+mod memo;
 mod symmetry;
 use least_norm::{NullSpaceConstraints, MAX_ITERATIONS};
+pub use memo::key as memo_key;
 
 /// Fewest particles across a box, along every axis, whose faces the closure serves (with the
 /// mirror images of its clamped faces); a thinner body keeps the plain fits.

@@ -466,20 +466,50 @@ where
                     }),
                 })
                 .collect();
-            let cl = sbp::close(
-                &p.x0,
-                &faces,
-                &p.body,
-                &bonds,
-                &op.second,
-                l0,
-                options.re_factor,
-                &bodies.iter().map(|b| b.name.as_str()).collect::<Vec<_>>(),
-                &|| interrupt.hit(),
-            );
-            if let Some(progress) = &cl.interrupted {
-                return Err(clock.interrupted(SetupStage::Closure, progress));
-            }
+            let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
+            // A closure an earlier set-up computed for this geometry (an FMU instance built
+            // again with other materials, step or damping) is taken as it is.
+            let key = observer.memo().map(|_| {
+                sbp::memo_key(
+                    &p.x0,
+                    &faces,
+                    &p.body,
+                    &bonds,
+                    &op.second,
+                    l0,
+                    options.re_factor,
+                    &names,
+                )
+            });
+            let kept = observer
+                .memo()
+                .zip(key)
+                .and_then(|(m, k)| m.closure::<sbp::Closure<D>>(k));
+            let reused_closure = kept.is_some();
+            let cl = match kept {
+                Some(cl) => cl,
+                None => {
+                    let cl = sbp::close(
+                        &p.x0,
+                        &faces,
+                        &p.body,
+                        &bonds,
+                        &op.second,
+                        l0,
+                        options.re_factor,
+                        &names,
+                        &|| interrupt.hit(),
+                    );
+                    if let Some(progress) = &cl.interrupted {
+                        return Err(clock.interrupted(SetupStage::Closure, progress));
+                    }
+                    let cl = std::sync::Arc::new(cl);
+                    if let (Some(m), Some(k)) = (observer.memo(), key) {
+                        m.keep_closure(k, cl.clone());
+                    }
+                    cl
+                }
+            };
             let closable: Vec<bool> = cl.vol.iter().map(|v| v.is_some()).collect();
             for (i, v) in cl.vol.iter().enumerate() {
                 if let Some(v) = v {
@@ -488,7 +518,7 @@ where
                     p.mass[i] = bodies[p.body[i] as usize].material.density * v;
                 }
             }
-            op.second.set_closure(&bonds, l0, cl.dg, closable);
+            op.second.set_closure(&bonds, l0, cl.dg.clone(), closable);
             // The followers' inertia, lumped on the layers they follow.
             for fl in &op.second.followers {
                 let m = p.mass[fl.particle as usize];
@@ -496,14 +526,19 @@ where
                     p.mass[*j as usize] += share * m;
                 }
             }
-            closure = cl.report;
+            closure = cl.report.clone();
             let closed = closure.iter().filter(|r| r.is_ok()).count();
             clock.done(
                 SetupStage::Closure,
                 &format!(
-                    "{closed} of {} {} closed",
+                    "{closed} of {} {} closed{}",
                     closure.len(),
-                    if closure.len() == 1 { "body" } else { "bodies" }
+                    if closure.len() == 1 { "body" } else { "bodies" },
+                    if reused_closure {
+                        ", as an earlier set-up of this geometry closed them"
+                    } else {
+                        ""
+                    }
                 ),
             )?;
         }

@@ -16,7 +16,7 @@ mod step;
 
 pub use build::MIN_SPACING_BITS;
 pub use mirror::MirrorFace;
-pub use setup::{SetupInterrupt, SetupObserver, SetupStage, Unobserved};
+pub use setup::{SetupInterrupt, SetupMemo, SetupObserver, SetupStage, Unobserved};
 pub use stable_step::{
     StableStepState, LANCZOS_ITERATIONS, LANCZOS_LEAST, LANCZOS_SETTLED, LANCZOS_SETTLE_WINDOW,
     OMEGA_MARGIN, REFRESH_CHECK_EVERY, REFRESH_DEFORMATION, REFRESH_ITERATIONS, REFRESH_MIN_STEPS,

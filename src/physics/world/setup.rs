@@ -4,7 +4,9 @@
 //! messages go (the FMI logger, stderr) or why an observer stops a set-up (a host's
 //! fmi2CancelStep).
 use super::SimError;
+use std::any::Any;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// The stages of a set-up, in order.
@@ -56,6 +58,45 @@ pub trait SetupObserver {
     /// (the closure's conjugate gradients) poll it, and `stop` then says why.
     fn stop_flag(&self) -> Option<&AtomicBool> {
         None
+    }
+    /// Results of an earlier set-up that this one may take instead of computing them again
+    /// (an FMU instance's, across its builds: see [`SetupMemo`]).
+    fn memo(&self) -> Option<&SetupMemo> {
+        None
+    }
+}
+
+/// What a set-up keeps for the next one: the second-order operator's closure, the longest
+/// stage by far (seconds for a bulky clamped body), which depends on the geometry only
+/// (positions, bonds, clamps and faces, not the materials, the step or the damping). Keyed by
+/// a hash of everything it is computed from, so a set-up of another geometry computes its own
+/// (and replaces it). One entry: an FMU instance rebuilds one scene with other parameters.
+#[derive(Default)]
+pub struct SetupMemo {
+    closure: Mutex<Option<(u64, Arc<dyn Any + Send + Sync>)>>,
+}
+
+impl SetupMemo {
+    /// The closure kept under `key`, if it is of this type.
+    pub(crate) fn closure<T: Any + Send + Sync>(&self, key: u64) -> Option<Arc<T>> {
+        let kept = self.closure.lock().unwrap_or_else(|e| e.into_inner());
+        match &*kept {
+            Some((k, v)) if *k == key => v.clone().downcast::<T>().ok(),
+            _ => None,
+        }
+    }
+
+    /// Keeps `value` under `key` (replacing what was kept).
+    pub(crate) fn keep_closure<T: Any + Send + Sync>(&self, key: u64, value: Arc<T>) {
+        *self.closure.lock().unwrap_or_else(|e| e.into_inner()) = Some((key, value));
+    }
+
+    /// Whether a closure is kept.
+    pub fn holds_closure(&self) -> bool {
+        self.closure
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .is_some()
     }
 }
 

@@ -1,6 +1,7 @@
 //! Builds `NAME.fmu` from a scene and the built cdylib: modelDescription.xml,
 //! binaries/linux64/<modelIdentifier>.so, resources/scene.json (with the STL files of its
-//! meshes beside it), documentation/index.html.
+//! meshes beside it, and the default operator's closure as the packing computed it:
+//! resources/mps-closure.bin), documentation/index.html.
 use super::model_description::guid;
 use super::variables::{coordinate, point, VarType, VariableTable};
 use crate::scene::limits::num;
@@ -53,7 +54,8 @@ pub fn packed_scene(scene: &Scene) -> (Scene, Vec<(String, std::path::PathBuf)>)
         let plain = p.is_relative()
             && p.components()
                 .all(|c| matches!(c, std::path::Component::Normal(_)))
-            && m.file != "scene.json";
+            && m.file != "scene.json"
+            && m.file != super::instance::CLOSURE_FILE;
         let name = if plain {
             m.file.clone()
         } else {
@@ -401,20 +403,34 @@ pub fn pack_fmu(scene: &Scene, library: &Path, out: &Path) -> Result<(), String>
         )
     })?;
     check_source_id(&lib, library)?;
-    let sim = crate::sim::Simulation::new(scene)
+    // Built with a memo: the default operator's closure it computes is shipped in the
+    // resources, so that an instance's first build takes it (the FMU's parameters change no
+    // geometry) instead of computing it again.
+    struct Keep(crate::physics::world::SetupMemo);
+    impl crate::physics::world::SetupObserver for Keep {
+        fn memo(&self) -> Option<&crate::physics::world::SetupMemo> {
+            Some(&self.0)
+        }
+    }
+    let keep = Keep(Default::default());
+    let sim = crate::sim::Simulation::new_observed(scene, &keep)
         .map_err(|e| format!("the scene's model cannot be built: {e}"))?;
+    let closure = keep.0.closure_bytes();
     let (packed, files) = packed_scene(scene);
-    let mut meshes = Vec::new();
+    let mut resources = Vec::new();
     for (name, source) in files {
         let data = std::fs::read(&source)
             .map_err(|e| format!("cannot read the mesh {}: {e}", source.display()))?;
-        meshes.push((name, data));
+        resources.push((name, data));
     }
     let scene = &packed;
     let xml = super::model_description::packed_model_description_xml(scene)?;
     let doc = documentation_html(scene, &sim);
     drop(sim);
-    let archive = archive(scene, &xml, &doc, &lib, &meshes)
+    if let Some(bytes) = closure {
+        resources.push((super::instance::CLOSURE_FILE.to_string(), bytes));
+    }
+    let archive = archive(scene, &xml, &doc, &lib, &resources)
         .map_err(|e| format!("cannot make the FMU archive of {}: {e}", out.display()))?;
     drop(lib);
     replace_file(out, &archive)
@@ -474,7 +490,7 @@ fn archive(
     xml: &str,
     doc: &str,
     lib: &[u8],
-    meshes: &[(String, Vec<u8>)],
+    resources: &[(String, Vec<u8>)],
 ) -> zip::result::ZipResult<Vec<u8>> {
     type Writer = ZipWriter<std::io::Cursor<Vec<u8>>>;
     let mut z: Writer = ZipWriter::new(std::io::Cursor::new(Vec::new()));
@@ -507,7 +523,7 @@ fn archive(
         scene.to_json().as_bytes(),
         0o644,
     )?;
-    for (name, data) in meshes {
+    for (name, data) in resources {
         add(&mut z, &format!("resources/{name}"), data, 0o644)?;
     }
     add(&mut z, "documentation/index.html", doc.as_bytes(), 0o644)?;

@@ -57,8 +57,9 @@ pub const fn at(rows: usize, j: usize, k: usize) -> usize {
     (k / LANES) * rows * LANES + j * LANES + k % LANES
 }
 
-/// The weight sets and the set of each particle.
-#[derive(Clone, Debug, Default)]
+/// The weight sets and the set of each particle (serde: a closure shipped in an FMU,
+/// `world::SetupMemo`).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Stencils<const D: usize> {
     /// Set of each particle.
     pub class: Vec<u32>,
@@ -216,6 +217,19 @@ where
     /// Number of distinct sets.
     pub fn classes(&self) -> usize {
         self.start.len() - 1
+    }
+
+    /// Whether the sets are consistent (offsets from 0, increasing, ending at the values' end;
+    /// every particle's set one of them or none): what a set-up checks of sets read from a
+    /// file before it indexes them.
+    pub fn well_formed(&self) -> bool {
+        self.start.first() == Some(&0)
+            && self.start.windows(2).all(|s| s[0] <= s[1])
+            && self.start.last().map(|&e| e as usize) == Some(self.w.len())
+            && self
+                .class
+                .iter()
+                .all(|&c| c == u32::MAX || (c as usize) < self.classes())
     }
 
     /// Bytes held (values, offsets, classes, index).

@@ -436,6 +436,31 @@ fn a_closure_is_taken_from_an_earlier_set_up_of_the_same_geometry_only() {
         "{}",
         obs.last_closure()
     );
+    // As bytes (what `mps pack` ships in the FMU): read back, the same closure is taken.
+    let bytes = obs.memo.closure_bytes().expect("a closure is kept");
+    let shipped = WithMemo {
+        stages: Stages::default(),
+        memo: mps_solid::physics::world::SetupMemo::from_closure_bytes(&bytes).unwrap(),
+    };
+    same_as_fresh(&other_params, &shipped);
+    assert!(
+        shipped.last_closure().contains("earlier"),
+        "{}",
+        shipped.last_closure()
+    );
+    // Damaged bytes are refused with what is wrong.
+    let refused = |b: &[u8]| {
+        mps_solid::physics::world::SetupMemo::from_closure_bytes(b)
+            .err()
+            .expect("damaged bytes must be refused")
+    };
+    let mut flipped = bytes.clone();
+    let last = flipped.len() - 1;
+    flipped[last] ^= 1;
+    assert!(refused(&flipped).contains("checksum"));
+    assert!(refused(&bytes[..bytes.len() / 2]).contains("header says"));
+    assert!(refused(&bytes[..20]).contains("truncated"));
+    assert!(refused(b"not a closure at all").contains("not a closure"));
     let mut longer = s.clone();
     longer.bodies[0].boxes[0].max[0] += 0.05;
     longer.loads.clear();

@@ -3,7 +3,7 @@
 //! the cached outputs.
 use super::inputs::{BoundaryTiming, GravitySource, Inputs};
 use super::logging::{LogRecord, Logger, PendingLog};
-use super::resources::{load_scene, resource_dir};
+use super::resources::{load_closure, load_scene, resource_dir};
 use super::status::Status;
 use super::status::{FmiError, FmiResult};
 use super::worker_pool::WorkerPool;
@@ -191,6 +191,11 @@ impl Instance {
             .ok_or("fmuResourceLocation is NULL: the FMU needs its resources/scene.json")?;
         let dir = resource_dir(uri)?;
         let scene = load_scene(&dir)?;
+        let (memo, shipped) = match load_closure(&dir) {
+            None => (SetupMemo::default(), None),
+            Some(Ok(m)) => (m, Some(Ok(()))),
+            Some(Err(e)) => (SetupMemo::default(), Some(Err(e))),
+        };
         let expected = guid(&scene);
         if fmu_guid != expected {
             return Err(format!(
@@ -213,7 +218,7 @@ impl Instance {
             table,
             sim: None,
             built: None,
-            memo: SetupMemo::default(),
+            memo,
             stale: true,
             pool,
             mode: Mode::Instantiated,
@@ -230,6 +235,15 @@ impl Instance {
             inst.scene.name,
             inst.table.vars.len()
         ));
+        match shipped {
+            Some(Ok(())) => inst.log.event(
+                "the resources hold the closure `mps pack` computed: the first build takes it",
+            ),
+            Some(Err(e)) => inst.log.warn(format!(
+                "{e}; the default operator's closure is computed at initialisation instead"
+            )),
+            None => {}
+        }
         // Under-resolved geometry: from the particles alone (the parameters change no geometry),
         // so it is known here, before the model is built.
         // On the instance's threads: the check runs parallel loops, which must not start
@@ -678,5 +692,94 @@ mod tests {
         let mut fresh = small2d();
         fresh.do_step(0.006, 0.002).unwrap();
         assert_eq!(outputs(&mut i), outputs(&mut fresh));
+    }
+}
+
+#[cfg(test)]
+mod shipped_closure {
+    use super::super::{Logger, Status, CLOSURE_FILE};
+    use super::Instance;
+    use crate::fmi::model_description::guid;
+    use crate::physics::world::{SetupMemo, SetupObserver};
+    use crate::scene::Scene;
+    use std::path::Path;
+    use std::sync::{Arc, Mutex};
+
+    #[derive(Default)]
+    struct Captured(Mutex<Vec<String>>);
+    impl Logger for Captured {
+        fn log(&self, _: Status, _: &str, message: &str) {
+            self.0.lock().unwrap().push(message.to_string());
+        }
+    }
+
+    struct Keep(SetupMemo);
+    impl SetupObserver for Keep {
+        fn memo(&self) -> Option<&SetupMemo> {
+            Some(&self.0)
+        }
+    }
+
+    /// tests/data/small3d.json in a resources directory of its own, with `closure` as the
+    /// shipped closure file (None: no file); the instance's log and its tip's u_z after 5 steps.
+    fn run(tag: &str, closure: Option<&[u8]>) -> (Vec<String>, u64) {
+        let dir =
+            std::env::temp_dir().join(format!("mps-shipped-closure-{}-{tag}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene =
+            Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/small3d.json"))
+                .unwrap();
+        std::fs::write(dir.join("scene.json"), scene.to_json()).unwrap();
+        if let Some(b) = closure {
+            std::fs::write(dir.join(CLOSURE_FILE), b).unwrap();
+        }
+        let log = Arc::new(Captured::default());
+        let uri = format!("file://{}", dir.display());
+        let mut i =
+            Instance::instantiate("unit", true, &guid(&scene), Some(&uri), log.clone(), true)
+                .unwrap();
+        i.setup_experiment(0.0, None).unwrap();
+        i.enter_initialization_mode().unwrap();
+        i.exit_initialization_mode().unwrap();
+        for k in 0..5 {
+            i.do_step(k as f64 * 0.002, 0.002).unwrap();
+        }
+        i.flush_log();
+        let uz = i.table().by_name("tip.uz").unwrap().value_reference;
+        let mut out = [0.0];
+        i.get_real(&[uz], &mut out).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        let messages = log.0.lock().unwrap().clone();
+        (messages, out[0].to_bits())
+    }
+
+    #[test]
+    fn the_closure_shipped_by_pack_spares_the_first_build_and_a_damaged_one_is_computed() {
+        // `mps pack` builds the model once; the closure it computed (the longest stage of a
+        // set-up, the same for every value of the FMU's parameters) is in the resources, and
+        // an instance's first build takes it: the same model, bit for bit.
+        let scene =
+            Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/small3d.json"))
+                .unwrap();
+        let keep = Keep(SetupMemo::default());
+        crate::sim::Simulation::new_observed(&scene, &keep).unwrap();
+        let bytes = keep.0.closure_bytes().expect("small3d has a closure");
+        let said = |log: &[String], what: &str| log.iter().any(|m| m.contains(what));
+        let (log, fresh) = run("none", None);
+        assert!(!said(&log, "earlier set-up"), "{log:?}");
+        let (log, shipped) = run("good", Some(&bytes));
+        assert!(said(&log, "the resources hold the closure"), "{log:?}");
+        assert!(
+            said(&log, "as an earlier set-up of this geometry closed them"),
+            "{log:?}"
+        );
+        assert_eq!(shipped, fresh);
+        let mut damaged = bytes.clone();
+        let at = damaged.len() / 2;
+        damaged[at] ^= 0x40;
+        let (log, computed) = run("damaged", Some(&damaged));
+        assert!(said(&log, "checksum does not match"), "{log:?}");
+        assert!(!said(&log, "earlier set-up"), "{log:?}");
+        assert_eq!(computed, fresh);
     }
 }

@@ -30,7 +30,7 @@ pub use fmu_state::FmuState;
 pub use inputs::{BoundaryTiming, GravitySource};
 pub use lifecycle::{Instance, Mode, SetupControl};
 pub use logging::{LogRecord, Logger, NoLogger};
-pub use resources::{load_scene, resource_dir};
+pub use resources::{load_closure, load_scene, resource_dir, CLOSURE_FILE};
 pub(crate) use status::panic_message;
 pub use status::{FmiError, FmiResult, Status};
 pub use stepping::{

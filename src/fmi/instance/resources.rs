@@ -1,4 +1,6 @@
-//! Resources: the `fmuResourceLocation` URI as a directory and the scene read from it.
+//! Resources: the `fmuResourceLocation` URI as a directory and the scene (and the closure
+//! `mps pack` computed) read from it.
+use crate::physics::world::SetupMemo;
 use crate::scene::Scene;
 use std::path::{Path, PathBuf};
 
@@ -37,6 +39,25 @@ pub fn resource_dir(uri: &str) -> Result<PathBuf, String> {
     let s = String::from_utf8(out)
         .map_err(|_| format!("fmuResourceLocation '{uri}' is not UTF-8 once decoded"))?;
     Ok(PathBuf::from(s))
+}
+
+/// The default operator's closure as `mps pack` computed it, in an FMU's resources
+/// (`SetupMemo::closure_bytes`): an instance's first build takes it instead of computing it.
+pub const CLOSURE_FILE: &str = "mps-closure.bin";
+
+/// The closure an FMU ships ([`CLOSURE_FILE`]): a memo holding it; None without the file;
+/// Err(why) if it cannot be read or is damaged (the build then computes the closure).
+pub fn load_closure(dir: &Path) -> Option<Result<SetupMemo, String>> {
+    let path = dir.join(CLOSURE_FILE);
+    let bytes = match std::fs::read(&path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
+        Err(e) => return Some(Err(format!("cannot read {}: {e}", path.display()))),
+    };
+    Some(
+        SetupMemo::from_closure_bytes(&bytes)
+            .map_err(|e| format!("{} is refused: {e}", path.display())),
+    )
 }
 
 /// Reads and checks the scene of an FMU's resources directory.

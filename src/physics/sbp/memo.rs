@@ -75,3 +75,74 @@ where
     }
     h.finish()
 }
+
+/// Start of a closure written to bytes (`mps pack` ships one in the FMU's resources).
+const MAGIC: &[u8; 12] = b"mps-closure\n";
+/// Version of the layout below.
+const FORMAT: u32 = 1;
+/// Most bytes a closure may take (a 10^6-particle body's takes about 30 MB).
+const MAX_BYTES: u64 = 1 << 32;
+
+fn options() -> impl bincode::Options {
+    use bincode::Options;
+    bincode::DefaultOptions::new()
+        .with_fixint_encoding()
+        .with_little_endian()
+        .with_limit(MAX_BYTES)
+}
+
+/// A closure and its key as bytes: magic, format, dimension, key, the payload's length and
+/// CRC-32, then the closure (bincode).
+pub fn to_bytes<const D: usize>(key: u64, closure: &super::Closure<D>) -> Option<Vec<u8>> {
+    use bincode::Options;
+    let payload = options().serialize(closure).ok()?;
+    let mut out = Vec::with_capacity(payload.len() + 40);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&FORMAT.to_le_bytes());
+    out.extend_from_slice(&(D as u32).to_le_bytes());
+    out.extend_from_slice(&key.to_le_bytes());
+    out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    out.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+    out.extend_from_slice(&payload);
+    Some(out)
+}
+
+/// The dimension and key of closure bytes, and the payload, checked (magic, format, length,
+/// CRC-32); what is wrong otherwise.
+pub fn header(bytes: &[u8]) -> Result<(usize, u64, &[u8]), String> {
+    let take = |at: usize, n: usize| bytes.get(at..at + n).ok_or("it is truncated");
+    if take(0, 12)? != MAGIC {
+        return Err("it is not a closure written by mps".into());
+    }
+    let u32_at = |at| take(at, 4).map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")));
+    let u64_at = |at| take(at, 8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")));
+    let format = u32_at(12)?;
+    if format != FORMAT {
+        return Err(format!(
+            "its format is {format}, this library reads {FORMAT}"
+        ));
+    }
+    let dim = u32_at(16)? as usize;
+    let key = u64_at(20)?;
+    let len = u64_at(28)?;
+    let crc = u32_at(36)?;
+    let payload = bytes.get(40..).ok_or("it is truncated")?;
+    if payload.len() as u64 != len {
+        return Err(format!(
+            "it holds {} bytes of closure where its header says {len}",
+            payload.len()
+        ));
+    }
+    if crc32fast::hash(payload) != crc {
+        return Err("its checksum does not match (the file is damaged)".into());
+    }
+    Ok((dim, key, payload))
+}
+
+/// The closure of a payload checked by [`header`].
+pub fn from_payload<const D: usize>(payload: &[u8]) -> Result<super::Closure<D>, String> {
+    use bincode::Options;
+    options()
+        .deserialize(payload)
+        .map_err(|e| format!("it cannot be read: {e}"))
+}

@@ -42,7 +42,7 @@ use super::second_order::SecondOrder;
 use super::stencils::Stencils;
 
 mod least_norm;
-mod memo;
+pub mod memo;
 mod symmetry;
 use least_norm::{NullSpaceConstraints, MAX_ITERATIONS};
 pub use memo::key as memo_key;
@@ -136,7 +136,7 @@ pub enum BodyFaces<const D: usize> {
 }
 
 /// What the closure changes, in the world's indexing.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Closure<const D: usize> {
     /// Volume of each closed particle (m^D): its quadrature weight and, times the density, its
     /// mass. None: not closed (l0^D).

@@ -481,10 +481,25 @@ where
                     &names,
                 )
             });
+            // (Checked before it is indexed: a closure read from a file may be of another
+            // model whose geometry hashed alike, or crafted.)
             let kept = observer
                 .memo()
                 .zip(key)
-                .and_then(|(m, k)| m.closure::<sbp::Closure<D>>(k));
+                .and_then(|(m, k)| m.closure::<sbp::Closure<D>>(k))
+                .filter(|cl| {
+                    cl.vol.len() == n
+                        && cl.vol.iter().flatten().all(|v| v.is_finite() && *v > 0.0)
+                        && cl.dg.class.len() == n
+                        && cl.dg.well_formed()
+                        && (0..n).all(|i| {
+                            cl.dg
+                                .get(i)
+                                .is_none_or(|row| row.len() == bonds.of(i).len() * D)
+                        })
+                        && cl.report.len() == bodies.len()
+                        && cl.interrupted.is_none()
+                });
             let reused_closure = kept.is_some();
             let cl = match kept {
                 Some(cl) => cl,

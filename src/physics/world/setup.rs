@@ -91,6 +91,33 @@ impl SetupMemo {
         *self.closure.lock().unwrap_or_else(|e| e.into_inner()) = Some((key, value));
     }
 
+    /// The kept closure as bytes (`mps pack` ships them in the FMU: its instances then
+    /// start from them), None if none is kept.
+    pub fn closure_bytes(&self) -> Option<Vec<u8>> {
+        use crate::physics::sbp::{self, Closure};
+        let kept = self.closure.lock().unwrap_or_else(|e| e.into_inner());
+        let (key, v) = kept.as_ref()?;
+        if let Some(c) = v.downcast_ref::<Closure<2>>() {
+            sbp::memo::to_bytes(*key, c)
+        } else {
+            sbp::memo::to_bytes(*key, v.downcast_ref::<Closure<3>>()?)
+        }
+    }
+
+    /// A memo holding the closure of `bytes` ([`SetupMemo::closure_bytes`]); what is wrong
+    /// with them otherwise (a set-up whose geometry hashes otherwise computes its own).
+    pub fn from_closure_bytes(bytes: &[u8]) -> Result<Self, String> {
+        use crate::physics::sbp;
+        let (dim, key, payload) = sbp::memo::header(bytes)?;
+        let memo = SetupMemo::default();
+        match dim {
+            2 => memo.keep_closure(key, Arc::new(sbp::memo::from_payload::<2>(payload)?)),
+            3 => memo.keep_closure(key, Arc::new(sbp::memo::from_payload::<3>(payload)?)),
+            d => return Err(format!("it is of dimension {d}")),
+        }
+        Ok(memo)
+    }
+
     /// Whether a closure is kept.
     pub fn holds_closure(&self) -> bool {
         self.closure

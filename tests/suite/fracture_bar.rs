@@ -265,19 +265,21 @@ fn a_particle_that_lost_all_its_bonds_flies_free() {
     assert!(vmax < 1e-9, "rest of the bar moves at {vmax}");
 }
 
+/// Pulls the right grip along x at 2 m/s from step k0 to k1 of 1e-4 s.
+fn pull(w: &mut World<3>, k0: usize, k1: usize) {
+    for k in k0..k1 {
+        let t = k as f64 * 1e-4;
+        w.ramp_group_to(1, Vector3::new(2.0 * t, 0.0, 0.0), t);
+        w.advance_to(t).unwrap();
+    }
+}
+
 #[test]
 fn a_broken_world_rewound_to_its_start_runs_as_a_fresh_one_bitwise() {
     // What fmi2Reset relies on when it keeps the built model (issue 24's set-up): the state
     // captured right after the build, restored into the same world after bonds broke (their
     // fits, the closure's closed rows and the contact lists changed), must give the same run
     // as a freshly built world, bit for bit, in every breaking bond, position and energy share.
-    let pull = |w: &mut World<3>, k0: usize, k1: usize| {
-        for k in k0..k1 {
-            let t = k as f64 * 1e-4;
-            w.ramp_group_to(1, Vector3::new(2.0 * t, 0.0, 0.0), t);
-            w.advance_to(t).unwrap();
-        }
-    };
     for model in [ElasticModel::Corrected, ElasticModel::SecondOrder] {
         let (mut a, _) = bar(14, model, Some(0.05), true);
         let start = a.state();
@@ -312,13 +314,6 @@ fn broken_bonds_survive_state_restore_bitwise() {
     // Break the bar, save the state, run on; restore in a fresh world and run the same steps:
     // bitwise the same positions, broken bonds and retained energy shares (surface flags and
     // shape tensors follow w0; the shares limited at breaks are part of the state).
-    let pull = |w: &mut World<3>, k0: usize, k1: usize| {
-        for k in k0..k1 {
-            let t = k as f64 * 1e-4;
-            w.ramp_group_to(1, Vector3::new(2.0 * t, 0.0, 0.0), t);
-            w.advance_to(t).unwrap();
-        }
-    };
     for model in [ElasticModel::Corrected, ElasticModel::SecondOrder] {
         let (mut a, _) = bar(14, model, Some(0.05), true);
         pull(&mut a, 1, 40);

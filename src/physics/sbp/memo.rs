@@ -3,10 +3,8 @@
 //! it was computed for.
 use std::hash::Hasher;
 
-use super::BodyFaces;
-use crate::physics::bonds::Bonds;
+use super::{BodyFaces, Closure, ClosureInputs};
 use crate::physics::dim::{Dim, Space, Vect};
-use crate::physics::second_order::SecondOrder;
 
 fn vect<const D: usize>(h: &mut impl Hasher, v: &Vect<D>) {
     for c in v.iter() {
@@ -19,20 +17,20 @@ fn vect<const D: usize>(h: &mut impl Hasher, v: &Vect<D>) {
 /// second-order operator's set-up decided before the closure (rigid and wall particles,
 /// mirror ghosts, clamp followers). The fits the closure also reads follow from these. Not
 /// the materials, the step or the damping, which the closure does not depend on.
-#[allow(clippy::too_many_arguments)]
-pub fn key<const D: usize>(
-    x0: &[Vect<D>],
-    faces: &[BodyFaces<D>],
-    body: &[u32],
-    bonds: &Bonds<D>,
-    so: &SecondOrder<D>,
-    l0: f64,
-    re_factor: f64,
-    names: &[&str],
-) -> u64
+pub fn key<const D: usize>(input: &ClosureInputs<'_, D>) -> u64
 where
     Space: Dim<D>,
 {
+    let ClosureInputs {
+        x0,
+        faces,
+        body,
+        bonds,
+        so,
+        l0,
+        re_factor,
+        names,
+    } = *input;
     let mut h = rustc_hash::FxHasher::default();
     h.write_usize(D);
     h.write_u64(l0.to_bits());
@@ -76,6 +74,28 @@ where
     h.finish()
 }
 
+/// Whether a kept closure can serve these inputs as they index it (checked before it is
+/// indexed: one read from a file may be of another model whose geometry hashed alike, or
+/// crafted): one volume and one set per particle, volumes positive, the sets well formed,
+/// each particle's row D values per bond, one report per body, complete.
+pub fn fits<const D: usize>(cl: &Closure<D>, input: &ClosureInputs<'_, D>) -> bool
+where
+    Space: Dim<D>,
+{
+    let n = input.x0.len();
+    cl.vol.len() == n
+        && cl.vol.iter().flatten().all(|v| v.is_finite() && *v > 0.0)
+        && cl.dg.class.len() == n
+        && cl.dg.well_formed()
+        && (0..n).all(|i| {
+            cl.dg
+                .get(i)
+                .is_none_or(|row| row.len() == input.bonds.of(i).len() * D)
+        })
+        && cl.report.len() == input.names.len()
+        && cl.interrupted.is_none()
+}
+
 /// Start of a closure written to bytes (`mps pack` ships one in the FMU's resources).
 const MAGIC: &[u8; 12] = b"mps-closure\n";
 /// Version of the layout below.
@@ -93,7 +113,7 @@ fn options() -> impl bincode::Options {
 
 /// A closure and its key as bytes: magic, format, dimension, key, the payload's length and
 /// CRC-32, then the closure (bincode).
-pub fn to_bytes<const D: usize>(key: u64, closure: &super::Closure<D>) -> Option<Vec<u8>> {
+pub fn to_bytes<const D: usize>(key: u64, closure: &Closure<D>) -> Option<Vec<u8>> {
     use bincode::Options;
     let payload = options().serialize(closure).ok()?;
     let mut out = Vec::with_capacity(payload.len() + 40);
@@ -140,7 +160,7 @@ pub fn header(bytes: &[u8]) -> Result<(usize, u64, &[u8]), String> {
 }
 
 /// The closure of a payload checked by [`header`].
-pub fn from_payload<const D: usize>(payload: &[u8]) -> Result<super::Closure<D>, String> {
+pub fn from_payload<const D: usize>(payload: &[u8]) -> Result<Closure<D>, String> {
     use bincode::Options;
     options()
         .deserialize(payload)

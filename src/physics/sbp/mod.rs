@@ -45,7 +45,6 @@ mod least_norm;
 pub mod memo;
 mod symmetry;
 use least_norm::{NullSpaceConstraints, MAX_ITERATIONS};
-pub use memo::key as memo_key;
 
 /// Fewest particles across a box, along every axis, whose faces the closure serves (with the
 /// mirror images of its clamped faces); a thinner body keeps the plain fits.
@@ -190,25 +189,44 @@ fn monomials<const D: usize>(s: &Vect<D>, out: &mut Vec<f64>) {
     }
 }
 
+/// What the closure is computed from: the reference positions and bodies, each body's faces
+/// (`faces`) and name, the world's bonds, its second-order operator after the fits (rigid
+/// flags, walls, ghosts, followers), the spacing l0 (m) and the stencil radius over l0.
+pub struct ClosureInputs<'a, const D: usize>
+where
+    Space: Dim<D>,
+{
+    pub x0: &'a [Vect<D>],
+    pub faces: &'a [BodyFaces<D>],
+    pub body: &'a [u32],
+    pub bonds: &'a Bonds<D>,
+    pub so: &'a SecondOrder<D>,
+    pub l0: f64,
+    pub re_factor: f64,
+    pub names: &'a [&'a str],
+}
+
 /// Closes the second-order operator of every body that is a filled lattice box once mirrored
-/// across its mirror faces, with its faces where `faces` says (per body). `so` is the world's
-/// operator (its rigid flags and ghosts), `bonds` the world's bonds, `names` the bodies' names. `stop` is polled in the solves (from any thread): when it says
-/// so, the closure ends at once with `interrupted` set.
-#[allow(clippy::too_many_arguments)]
+/// across its mirror faces, with its faces where `faces` says (per body). `stop` is polled in
+/// the solves (from any thread): when it says so, the closure ends at once with `interrupted`
+/// set.
 pub fn close<const D: usize>(
-    x0: &[Vect<D>],
-    faces: &[BodyFaces<D>],
-    body: &[u32],
-    bonds: &Bonds<D>,
-    so: &SecondOrder<D>,
-    l0: f64,
-    re_factor: f64,
-    names: &[&str],
+    input: &ClosureInputs<'_, D>,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Closure<D>
 where
     Space: Dim<D>,
 {
+    let ClosureInputs {
+        x0,
+        faces,
+        body,
+        bonds,
+        so,
+        l0,
+        re_factor,
+        names,
+    } = *input;
     let n = x0.len();
     let mut out = Closure {
         vol: vec![None; n],

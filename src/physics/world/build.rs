@@ -467,54 +467,30 @@ where
                 })
                 .collect();
             let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
+            let input = sbp::ClosureInputs {
+                x0: &p.x0,
+                faces: &faces,
+                body: &p.body,
+                bonds: &bonds,
+                so: &op.second,
+                l0,
+                re_factor: options.re_factor,
+                names: &names,
+            };
             // A closure an earlier set-up computed for this geometry (an FMU instance built
-            // again with other materials, step or damping) is taken as it is.
-            let key = observer.memo().map(|_| {
-                sbp::memo_key(
-                    &p.x0,
-                    &faces,
-                    &p.body,
-                    &bonds,
-                    &op.second,
-                    l0,
-                    options.re_factor,
-                    &names,
-                )
-            });
-            // (Checked before it is indexed: a closure read from a file may be of another
-            // model whose geometry hashed alike, or crafted.)
+            // again with other materials, step or damping, or the one `mps pack` shipped) is
+            // taken as it is.
+            let key = observer.memo().map(|_| sbp::memo::key(&input));
             let kept = observer
                 .memo()
                 .zip(key)
                 .and_then(|(m, k)| m.closure::<sbp::Closure<D>>(k))
-                .filter(|cl| {
-                    cl.vol.len() == n
-                        && cl.vol.iter().flatten().all(|v| v.is_finite() && *v > 0.0)
-                        && cl.dg.class.len() == n
-                        && cl.dg.well_formed()
-                        && (0..n).all(|i| {
-                            cl.dg
-                                .get(i)
-                                .is_none_or(|row| row.len() == bonds.of(i).len() * D)
-                        })
-                        && cl.report.len() == bodies.len()
-                        && cl.interrupted.is_none()
-                });
+                .filter(|cl| sbp::memo::fits(cl, &input));
             let reused_closure = kept.is_some();
             let cl = match kept {
                 Some(cl) => cl,
                 None => {
-                    let cl = sbp::close(
-                        &p.x0,
-                        &faces,
-                        &p.body,
-                        &bonds,
-                        &op.second,
-                        l0,
-                        options.re_factor,
-                        &names,
-                        &|| interrupt.hit(),
-                    );
+                    let cl = sbp::close(&input, &|| interrupt.hit());
                     if let Some(progress) = &cl.interrupted {
                         return Err(clock.interrupted(SetupStage::Closure, progress));
                     }

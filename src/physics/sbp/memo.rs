@@ -21,27 +21,18 @@ pub fn key<const D: usize>(input: &ClosureInputs<'_, D>) -> u64
 where
     Space: Dim<D>,
 {
-    let ClosureInputs {
-        x0,
-        faces,
-        body,
-        bonds,
-        so,
-        l0,
-        re_factor,
-        names,
-    } = *input;
+    let (x0, bonds, so) = (input.x0, input.bonds, input.so);
     let mut h = rustc_hash::FxHasher::default();
     h.write_usize(D);
-    h.write_u64(l0.to_bits());
-    h.write_u64(re_factor.to_bits());
+    h.write_u64(input.l0.to_bits());
+    h.write_u64(input.re_factor.to_bits());
     h.write_usize(x0.len());
     x0.iter().for_each(|x| vect(&mut h, x));
-    body.iter().for_each(|&b| h.write_u32(b));
+    input.body.iter().for_each(|&b| h.write_u32(b));
     bonds.start.iter().for_each(|&s| h.write_u32(s));
     bonds.nbr.iter().for_each(|&j| h.write_u32(j));
     bonds.w0.iter().for_each(|w| h.write_u64(w.to_bits()));
-    for f in faces {
+    for f in input.faces {
         match f {
             BodyFaces::Lattice => h.write_u8(0),
             BodyFaces::Box(lo, hi) => {
@@ -52,7 +43,7 @@ where
             BodyFaces::Other => h.write_u8(2),
         }
     }
-    for n in names {
+    for n in input.names {
         h.write(n.as_bytes());
         h.write_u8(0xff);
     }

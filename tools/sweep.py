@@ -395,11 +395,14 @@ def _kill_group(p: subprocess.Popen) -> None:
 
 
 def run_scene(scene: dict, params: dict, mps: str, mode: str = "run", want_series: bool = False,
-              timeout: float | None = None, threads: int | None = None) -> dict:
+              timeout: float | None = None, threads: int | None = None,
+              closure_cache: str | None = None) -> dict:
     """Writes ``scene`` to a temporary directory and runs ``mps`` on it; returns the result row
     (never raises for a failed run: status ``failed`` and the message). ``timeout``: seconds,
     then the run's process group is killed and the row failed (None: no limit). The run dies
-    with the process that called this (Linux; see ``_die_with_parent``)."""
+    with the process that called this (Linux; see ``_die_with_parent``). ``closure_cache``: a
+    directory where ``mps run`` keeps the default operator's closure of each geometry and finds
+    it again (rows that change materials, step or damping pay it once per worker)."""
     row: dict[str, Any] = dict(params)
     row["scene_hash"] = scene_hash(scene)
     row["status"] = "failed"
@@ -417,6 +420,8 @@ def run_scene(scene: dict, params: dict, mps: str, mode: str = "run", want_serie
         env = dict(os.environ)
         if threads is not None:
             env["RAYON_NUM_THREADS"] = str(threads)
+        if closure_cache is not None and mode == "run":
+            env["MPS_CLOSURE_CACHE"] = closure_cache
         preexec = _die_with_parent()
         group = {"preexec_fn": preexec} if preexec is not None else {"start_new_session": True}
         try:
@@ -614,9 +619,12 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
           mps: Path = DEFAULT_MPS, series: Path | None = None, retries: int = 2,
           timeout: float | None = DEFAULT_TIMEOUT_S, retry_failed: bool = False, stop_time: float | None = None,
           step_size: float | None = None, processes: bool = True, progress: bool = True,
-          threads: int | None = None):
+          threads: int | None = None, closure_cache: bool = True):
     """Runs every row of ``table`` not already in ``out``; returns the results DataFrame.
-    ``timeout``: seconds per run of mps (None: none). Bad input raises SweepError."""
+    ``timeout``: seconds per run of mps (None: none). ``closure_cache``: the runs keep the
+    default operator's closure of each geometry in ``<out>.closure-cache`` beside the results and
+    take it from there
+    (a worker that cannot write there warns and computes it). Bad input raises SweepError."""
     from distributed import as_completed
 
     if (base is None) == (fmu is None):
@@ -691,12 +699,13 @@ def sweep(table: list[dict], out: Path, *, base: Path | None = None, fmu: Path |
         if client.dashboard_link and progress:
             print(f"sweep: dashboard {client.dashboard_link}", file=sys.stderr)
         want_series = series is not None
+        cache = str(out.with_name(out.name + ".closure-cache").resolve()) if closure_cache else None
         futures = []
         if base is not None:
             for h, params, scene in todo:
                 futures.append(client.submit(run_scene, scene, params, str(mps), mode, want_series,
-                                             timeout, threads, key=f"mps-run-{h}", retries=retries,
-                                             pure=False))
+                                             timeout, threads, cache, key=f"mps-run-{h}",
+                                             retries=retries, pure=False))
         else:
             blob = client.scatter(fmu_bytes, broadcast=True)
             for h, params, _ in todo:

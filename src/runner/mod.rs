@@ -3,7 +3,7 @@
 pub mod analysis;
 
 use self::analysis::{dominant_frequency, peak};
-use crate::physics::world::{SetupObserver, SetupStage};
+use crate::physics::world::{SetupMemo, SetupObserver, SetupStage};
 use crate::scene::limits::num;
 use crate::scene::{axis_index, Scene, SceneWarning};
 use crate::sim::Simulation;
@@ -90,7 +90,7 @@ pub enum RunEvent<'a> {
 }
 
 /// Relays the set-up's stages to a run's `on_event` (the set-up runs on the calling thread).
-struct SetupRelay<'a, F>(std::cell::RefCell<&'a mut F>);
+struct SetupRelay<'a, F>(std::cell::RefCell<&'a mut F>, Option<&'a SetupMemo>);
 
 impl<F: FnMut(RunEvent)> SetupObserver for SetupRelay<'_, F> {
     fn stage_done(&self, stage: SetupStage, seconds: f64, detail: &str) {
@@ -100,6 +100,9 @@ impl<F: FnMut(RunEvent)> SetupObserver for SetupRelay<'_, F> {
             seconds,
             detail,
         });
+    }
+    fn memo(&self) -> Option<&SetupMemo> {
+        self.1
     }
 }
 
@@ -251,7 +254,17 @@ pub fn prepare_with<F: FnMut(RunEvent)>(
     scene: &Scene,
     on_event: &mut F,
 ) -> Result<Simulation, String> {
-    let sim = Simulation::new_observed(scene, &SetupRelay(std::cell::RefCell::new(on_event)))
+    prepare_with_memo(scene, None, on_event)
+}
+
+/// [`prepare_with`], taking the default operator's closure from `memo` where it holds one for
+/// this geometry and keeping the one computed there otherwise (`mps run --closure-cache`).
+pub fn prepare_with_memo<F: FnMut(RunEvent)>(
+    scene: &Scene,
+    memo: Option<&SetupMemo>,
+    on_event: &mut F,
+) -> Result<Simulation, String> {
+    let sim = Simulation::new_observed(scene, &SetupRelay(std::cell::RefCell::new(on_event), memo))
         .map_err(|e| e.to_string())?;
     check_free_particles(&sim)?;
     sim.check_work(scene.end_time).map_err(|e| e.to_string())?;

@@ -98,6 +98,23 @@ def test_sweep_rows_failure_and_skip(client, base, tmp_path):
     # [1e6] with the base's poisson 0.3 is the same scene as row 1: skipped; 3e6 is new.
     assert len(df3) == 5
     assert (df3["bodies[0].material.young"] == 3e6).sum() == 1
+    # The rows change no geometry: one closure for them all, kept beside the results.
+    cache = out.with_name(out.name + ".closure-cache")
+    assert len(list(cache.glob("closure-2d-*.bin"))) == 1, list(cache.iterdir())
+
+
+def test_closure_cache_changes_no_result(client, base, tmp_path):
+    # The closure taken from the cache gives the run a build from scratch gives.
+    table = write_table(tmp_path / "t.csv", ["bodies[0].material.young"], [[1e6], [2e6]])
+    rows = sweep.read_table(table)
+    cached = sweep.sweep(rows, tmp_path / "a.csv", base=base, client=client, mps=MPS,
+                         progress=False).sort_values("bodies[0].material.young")
+    plain = sweep.sweep(rows, tmp_path / "b.csv", base=base, client=client, mps=MPS,
+                        progress=False, closure_cache=False).sort_values("bodies[0].material.young")
+    assert not (tmp_path / "b.csv.closure-cache").exists()
+    for col in ["steps", "tip.umax", "tip.uy_end"]:
+        if col in cached:
+            assert cached[col].tolist() == plain[col].tolist(), col
 
 
 def test_bad_path_and_blow_up(client, base, tmp_path):

@@ -285,3 +285,44 @@ fn cases_runs_case_3_and_selects_cases() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("not in 1..=3"));
 }
+
+#[test]
+fn a_closure_cache_serves_runs_of_the_same_geometry_and_changes_no_result() {
+    // `mps run --closure-cache DIR`: the default operator's closure (a function of the
+    // geometry only) is kept in DIR and taken by the next run of that geometry, whose probes
+    // are those of a run without the cache to the printed digits. A cache that cannot be
+    // written is a warning, not a failure.
+    let d = scratch("closure-cache");
+    let cache = d.join("cache");
+    let mut scene = load("tests/data/small2d.json");
+    scene["end_time"] = json!(0.01);
+    let arg = ["--closure-cache", cache.to_str().unwrap()];
+    let (ok, _, err) = run(&d, &scene, &arg);
+    assert!(ok, "{err}");
+    let files: Vec<_> = std::fs::read_dir(&cache).unwrap().collect();
+    assert_eq!(files.len(), 1, "{files:?}");
+    scene["bodies"][0]["material"]["young"] = json!(2.0e6);
+    let (ok, _, err) = run(&d, &scene, &arg);
+    assert!(ok && !err.contains("closure cache"), "{err}");
+    assert_eq!(std::fs::read_dir(&cache).unwrap().count(), 1);
+    let cached = std::fs::read_to_string(d.join("o/probes.csv")).unwrap();
+    let (ok, _, err) = run(&d, &scene, &[]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        std::fs::read_to_string(d.join("o/probes.csv")).unwrap(),
+        cached
+    );
+    // A file where the cache directory should be.
+    let blocked = d.join("blocked");
+    std::fs::write(&blocked, "not a directory").unwrap();
+    let (ok, _, err) = run(&d, &scene, &["--closure-cache", blocked.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("warning: closure cache: cannot write"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("o/probes.csv")).unwrap(),
+        cached
+    );
+}

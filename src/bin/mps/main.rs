@@ -8,7 +8,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mps_solid::physics::ElasticModel;
 mod run_outputs;
 mod run_progress;
-use mps_solid::runner::{energy_csv, prepare_with, run_prepared, series_csv, RunEvent, RunOptions};
+use mps_solid::runner::{
+    energy_csv, prepare_with_memo, run_prepared, series_csv, RunEvent, RunOptions,
+};
 use mps_solid::Scene;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -63,6 +65,12 @@ enum Cmd {
         /// Print the result (including the series) as JSON on stdout.
         #[arg(long)]
         json: bool,
+        /// Keep the default operator's closure (the longest stage of its set-up, a function
+        /// of the geometry only) as a file in DIR, and take it from there when a run of the
+        /// same geometry finds it: a sweep over materials, step or damping pays it once.
+        /// Default: the environment variable MPS_CLOSURE_CACHE, else none.
+        #[arg(long, value_name = "DIR")]
+        closure_cache: Option<PathBuf>,
     },
     /// Pack a scene into an FMI 2.0 co-simulation FMU.
     Pack {
@@ -171,7 +179,15 @@ fn run(cli: Cli) -> Result<ExitCode, String> {
             energy,
             surface,
             json,
-        } => run_command(&scene, &out, energy, surface, json),
+            closure_cache,
+        } => run_command(
+            &scene,
+            &out,
+            energy,
+            surface,
+            json,
+            closure_cache.or_else(|| std::env::var_os("MPS_CLOSURE_CACHE").map(PathBuf::from)),
+        ),
         Cmd::Pack {
             scenes,
             out,
@@ -356,10 +372,12 @@ fn run_command(
     energy: bool,
     surface: bool,
     json: bool,
+    closure_cache: Option<PathBuf>,
 ) -> Result<ExitCode, String> {
     let sc = Scene::load(scene).map_err(|e| e.to_string())?;
     let mut setup = SetupLines::default();
-    let sim = prepare_with(&sc, &mut |e| {
+    let memo = closure_cache.map(mps_solid::physics::world::SetupMemo::in_dir);
+    let sim = prepare_with_memo(&sc, memo.as_ref(), &mut |e| {
         if let RunEvent::Setup {
             stage,
             seconds,
@@ -368,7 +386,11 @@ fn run_command(
         {
             setup.stage(stage.name(), seconds, detail)
         }
-    })?;
+    });
+    for note in memo.iter().flat_map(|m| m.take_notes()) {
+        eprintln!("warning: closure cache: {note}");
+    }
+    let sim = sim?;
     let mut files = run_outputs::RunOutputs::open(out, energy)?;
     let mut progress = run_progress::RunProgress::new(&sc, &sim);
     let _interrupt = StopOnInterrupt::install();

@@ -484,7 +484,7 @@ where
             let kept = observer
                 .memo()
                 .zip(key)
-                .and_then(|(m, k)| m.closure::<sbp::Closure<D>>(k))
+                .and_then(|(m, k)| m.closure::<D>(k))
                 .filter(|cl| sbp::memo::fits(cl, &input));
             let reused_closure = kept.is_some();
             let cl = match kept {

@@ -4,7 +4,9 @@
 //! messages go (the FMI logger, stderr) or why an observer stops a set-up (a host's
 //! fmi2CancelStep).
 use super::SimError;
+use crate::physics::sbp::{self, Closure};
 use std::any::Any;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -70,31 +72,113 @@ pub trait SetupObserver {
 /// stage by far (seconds for a bulky clamped body), which depends on the geometry only
 /// (positions, bonds, clamps and faces, not the materials, the step or the damping). Keyed by
 /// a hash of everything it is computed from, so a set-up of another geometry computes its own
-/// (and replaces it). One entry: an FMU instance rebuilds one scene with other parameters.
+/// (and replaces it). One entry in memory (an FMU instance rebuilds one scene with other
+/// parameters); with a directory ([`SetupMemo::in_dir`], `mps run --closure-cache`), every
+/// closure also as a file there, found by its key by later processes (a sweep's runs).
 #[derive(Default)]
 pub struct SetupMemo {
     closure: Mutex<Option<(u64, Arc<dyn Any + Send + Sync>)>>,
+    dir: Option<PathBuf>,
+    /// What went wrong with the directory (a file that could not be written or read).
+    notes: Mutex<Vec<String>>,
 }
 
 impl SetupMemo {
-    /// The closure kept under `key`, if it is of this type.
-    pub(crate) fn closure<T: Any + Send + Sync>(&self, key: u64) -> Option<Arc<T>> {
-        let kept = self.closure.lock().unwrap_or_else(|e| e.into_inner());
-        match &*kept {
-            Some((k, v)) if *k == key => v.clone().downcast::<T>().ok(),
-            _ => None,
+    /// A memo that also keeps its closures as files in `dir` (created when first written)
+    /// and finds them there.
+    pub fn in_dir(dir: PathBuf) -> Self {
+        SetupMemo {
+            dir: Some(dir),
+            ..Default::default()
         }
     }
 
-    /// Keeps `value` under `key` (replacing what was kept).
-    pub(crate) fn keep_closure<T: Any + Send + Sync>(&self, key: u64, value: Arc<T>) {
+    fn file(&self, d: usize, key: u64) -> Option<PathBuf> {
+        Some(
+            self.dir
+                .as_ref()?
+                .join(format!("closure-{d}d-{key:016x}.bin")),
+        )
+    }
+
+    fn note(&self, what: String) {
+        self.notes
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(what);
+    }
+
+    /// What went wrong with the directory since the last call (a cache that does not work
+    /// costs time, not results: the callers print it as a warning).
+    pub fn take_notes(&self) -> Vec<String> {
+        std::mem::take(&mut *self.notes.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+
+    /// The closure kept under `key`: in memory, else from the directory's file of that key.
+    pub(crate) fn closure<const D: usize>(&self, key: u64) -> Option<Arc<Closure<D>>> {
+        {
+            let kept = self.closure.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some((k, v)) = &*kept {
+                if *k == key {
+                    if let Ok(c) = v.clone().downcast::<Closure<D>>() {
+                        return Some(c);
+                    }
+                }
+            }
+        }
+        let path = self.file(D, key)?;
+        let bytes = match std::fs::read(&path) {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
+            Err(e) => {
+                self.note(format!("cannot read {}: {e}", path.display()));
+                return None;
+            }
+        };
+        let read = sbp::memo::header(&bytes).and_then(|(d, k, payload)| {
+            if (d, k) != (D, key) {
+                return Err("it is of another geometry".into());
+            }
+            sbp::memo::from_payload::<D>(payload)
+        });
+        match read {
+            Ok(c) => {
+                let c = Arc::new(c);
+                *self.closure.lock().unwrap_or_else(|e| e.into_inner()) = Some((key, c.clone()));
+                Some(c)
+            }
+            Err(e) => {
+                self.note(format!("{} is not used: {e}", path.display()));
+                None
+            }
+        }
+    }
+
+    /// Keeps `value` under `key` (replacing what was kept), and as its file in the directory
+    /// (written beside it and renamed, so that a concurrent run reads a whole file or none).
+    pub(crate) fn keep_closure<const D: usize>(&self, key: u64, value: Arc<Closure<D>>) {
+        if let Some(path) = self.file(D, key) {
+            if !path.exists() {
+                if let Some(bytes) = sbp::memo::to_bytes(key, &value) {
+                    let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
+                    let written = path
+                        .parent()
+                        .map_or(Ok(()), std::fs::create_dir_all)
+                        .and_then(|_| std::fs::write(&tmp, &bytes))
+                        .and_then(|_| std::fs::rename(&tmp, &path));
+                    if let Err(e) = written {
+                        let _ = std::fs::remove_file(&tmp);
+                        self.note(format!("cannot write {}: {e}", path.display()));
+                    }
+                }
+            }
+        }
         *self.closure.lock().unwrap_or_else(|e| e.into_inner()) = Some((key, value));
     }
 
     /// The kept closure as bytes (`mps pack` ships them in the FMU: its instances then
     /// start from them), None if none is kept.
     pub fn closure_bytes(&self) -> Option<Vec<u8>> {
-        use crate::physics::sbp::{self, Closure};
         let kept = self.closure.lock().unwrap_or_else(|e| e.into_inner());
         let (key, v) = kept.as_ref()?;
         if let Some(c) = v.downcast_ref::<Closure<2>>() {
@@ -107,7 +191,6 @@ impl SetupMemo {
     /// A memo holding the closure of `bytes` ([`SetupMemo::closure_bytes`]); what is wrong
     /// with them otherwise (a set-up whose geometry hashes otherwise computes its own).
     pub fn from_closure_bytes(bytes: &[u8]) -> Result<Self, String> {
-        use crate::physics::sbp;
         let (dim, key, payload) = sbp::memo::header(bytes)?;
         let memo = SetupMemo::default();
         match dim {

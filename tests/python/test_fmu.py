@@ -260,6 +260,21 @@ def test_instance_reused_with_reset_rewinds_instead_of_building(capfd):
         inst.freeInstance()
 
 
+def test_sweep_example_reuses_one_instance():
+    """examples/fmpy_sweep.py on small3d: one row per value, the same numbers for a value run
+    again after another."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, str(ROOT / "examples" / "fmpy_sweep.py"),
+                          fmu_path("small3d"), "--output", "tip.uz", "--stop", "0.01",
+                          "--values", "1e6,3e6,1e6"],
+                         check=True, capture_output=True, text=True).stdout.splitlines()
+    rows = [line.split() for line in out[1:]]
+    assert len(rows) == 3, out
+    assert rows[0][:3] == rows[2][:3] and rows[0][1] != rows[1][1], out
+
+
 def test_case3_with_fractured_surface_contact_completes_and_breaks_after_contact():
     # The paper's case 3 through fmpy: the cube reaches the block at gap / speed = 0.07 s, so no
     # bond may break before that; bonds break afterwards (fracture_count rises from zero) and the

@@ -17,7 +17,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 seconds=${FUZZ_SECONDS:-20}
-targets=${FUZZ_TARGETS:-scene fmu_state fmi_calls}
+targets=${FUZZ_TARGETS:-scene fmu_state closure fmi_calls}
 export CARGO_TERM_COLOR=never
 
 if ! cargo +nightly --version >/dev/null 2>&1; then

@@ -155,6 +155,15 @@ pub fn first_byte_difference(a: &[u8], b: &[u8]) -> String {
     }
 }
 
+/// A set-up observer lending a memo (the closure a build takes: `mps pack` ships one).
+pub struct KeepClosure(pub mps_solid::physics::world::SetupMemo);
+
+impl mps_solid::physics::world::SetupObserver for KeepClosure {
+    fn memo(&self) -> Option<&mps_solid::physics::world::SetupMemo> {
+        Some(&self.0)
+    }
+}
+
 /// One test scene with its resources directory (file:// URI) and GUID.
 pub struct Fixture {
     pub scene: Scene,

@@ -1,6 +1,7 @@
 //! Seed inputs of the fuzz targets, written into DIR/<target>/: the test and paper scenes
 //! (JSON and TOML) for `scene`, and real serialised FMU states of small2d and small3d (at
-//! t = 0, after steps, with inputs and parameters set) for `fmu_state`. scripts/fuzz.sh writes
+//! t = 0, after steps, with inputs and parameters set) for `fmu_state`, and their closures for
+//! `closure`. scripts/fuzz.sh writes
 //! them on each run (through the fmu_state binary with MPS_FUZZ_SEEDS=DIR: a fuzz crate builds
 //! only libFuzzer binaries), so the state seeds always match the current state format.
 use crate::{fixtures, initialised};
@@ -25,9 +26,17 @@ fn state(inst: &mut Instance) -> Vec<u8> {
     inst.serialize_fmu_state(&s).expect("serialise state")
 }
 
-/// Writes the seeds into `out`/scene and `out`/fmu_state.
+/// Writes the seeds into `out`/scene, `out`/fmu_state and `out`/closure.
 pub fn write_seeds(out: &Path) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+
+    // The closures small2d's and small3d's builds compute (what `mps pack` ships).
+    for f in &fixtures()[..2] {
+        let keep = crate::KeepClosure(Default::default());
+        mps_solid::Simulation::new_observed(&f.scene, &keep).expect("the test scene builds");
+        let bytes = keep.0.closure_bytes().expect("the test scene has a closure");
+        write(&out.join("closure"), &format!("{}.bin", f.scene.name), &bytes);
+    }
 
     let scenes = out.join("scene");
     for (f, text) in fixtures().iter().zip(crate::TEXTS) {

@@ -3,7 +3,7 @@
 # Rust unit and integration tests (physics, scenes, paper cases, FMI C ABI via libloading, the
 # cbindgen header check, the C signature check), the FMU tests (packing, modelDescription
 # staleness, the C host example, fmpy validation and simulation), which install their own
-# Python virtual environment, and bounded fuzzing of the scene parser, FMU-state decoding and
+# Python virtual environment, and bounded fuzzing of the scene parser, FMU-state decoding, the shipped closure and
 # FMI call sequences (scripts/fuzz.sh, nightly toolchain).
 #
 # Two independent preparations run in the background while the Rust tests build (their logs:
